@@ -1,0 +1,291 @@
+//! The fast collision checker the planner calls in its inner loop: the robot's sphere model
+//! against the environment, self-collision over the configured link pairs, and motion (edge)
+//! checks at a fixed resolution.
+//!
+//! Per link, the link's bounding sphere is tested first (broad phase); only the objects it
+//! touches are tested against the link's spheres. Nothing here allocates after construction.
+
+use crate::robot::Robot;
+use crate::world::Environment;
+use crate::Pose;
+use nalgebra::Point3;
+
+/// Default edge-check resolution in configuration-space distance (1/32, as VAMP uses).
+pub const DEFAULT_RESOLUTION: f64 = 1.0 / 32.0;
+
+/// What a colliding configuration touches first.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Contact {
+    /// A robot link touches an environment object.
+    Object {
+        /// Link name.
+        link: String,
+        /// Object name.
+        object: String,
+    },
+    /// Two robot links touch.
+    SelfCollision {
+        /// First link name.
+        link_a: String,
+        /// Second link name.
+        link_b: String,
+    },
+}
+
+impl std::fmt::Display for Contact {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Contact::Object { link, object } => write!(f, "link {link} touches object {object}"),
+            Contact::SelfCollision { link_a, link_b } => {
+                write!(f, "link {link_a} touches link {link_b}")
+            }
+        }
+    }
+}
+
+/// Counters of checker work.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct CheckStats {
+    /// Configurations checked.
+    pub configs: u64,
+    /// Motions checked.
+    pub motions: u64,
+}
+
+/// A configuration and motion validity checker over a robot and an environment.
+///
+/// ```
+/// use ember_engine::{collision::SphereChecker, robot::Robot, world::Environment};
+/// let fetch = Robot::builtin("fetch").unwrap();
+/// let env = Environment::new();
+/// let mut sut = SphereChecker::new(&fetch, &env);
+/// assert!(sut.is_valid(fetch.named_state("stow").unwrap()));
+/// ```
+pub struct SphereChecker<'a> {
+    robot: &'a Robot,
+    env: &'a Environment,
+    resolution: f64,
+    poses: Vec<Pose>,
+    centers: Vec<[f64; 3]>,
+    bounds: Vec<[f64; 3]>,
+    scratch: Vec<f64>,
+    stats: CheckStats,
+    /// Links with spheres that move with the group: the only ones checked per configuration.
+    moving_links: Vec<usize>,
+    /// Self-collision pairs with at least one moving link.
+    moving_pairs: Vec<(usize, usize)>,
+    /// Contact among links that never move (base against the world): blocks every configuration.
+    static_contact: Option<Contact>,
+}
+
+impl<'a> SphereChecker<'a> {
+    /// A checker with the default edge resolution.
+    pub fn new(robot: &'a Robot, env: &'a Environment) -> Self {
+        let n_links = robot.links().len();
+        let mut sut = SphereChecker {
+            robot,
+            env,
+            resolution: DEFAULT_RESOLUTION,
+            poses: vec![Pose::identity(); n_links],
+            centers: vec![[0.0; 3]; robot.spheres().len()],
+            bounds: vec![[0.0; 3]; n_links],
+            scratch: vec![0.0; robot.dof()],
+            stats: CheckStats::default(),
+            moving_links: Vec::new(),
+            moving_pairs: Vec::new(),
+            static_contact: None,
+        };
+        // What never moves is checked once: the base against the world, body against body.
+        let n = robot.links().len();
+        let (moving, fixed): (Vec<usize>, Vec<usize>) = (0..n)
+            .filter(|&l| robot.spheres().bounds[l].is_some())
+            .partition(|&l| robot.link_moves(l));
+        let (moving_pairs, fixed_pairs): (Vec<_>, Vec<_>) = robot
+            .self_collision_pairs()
+            .iter()
+            .partition(|&&(a, b)| robot.link_moves(a) || robot.link_moves(b));
+        let q: Vec<f64> = robot
+            .variables()
+            .iter()
+            .map(|v| (v.lower + v.upper) / 2.0)
+            .collect();
+        sut.update(&q);
+        sut.static_contact = sut.first_contact(&fixed, &fixed_pairs);
+        sut.moving_links = moving;
+        sut.moving_pairs = moving_pairs;
+        sut
+    }
+
+    /// Sets the edge-check resolution (configuration-space distance between checked states).
+    pub fn with_resolution(mut self, resolution: f64) -> Self {
+        self.resolution = resolution.max(1e-6);
+        self
+    }
+
+    /// The edge-check resolution.
+    pub fn resolution(&self) -> f64 {
+        self.resolution
+    }
+
+    /// The robot checked.
+    pub fn robot(&self) -> &'a Robot {
+        self.robot
+    }
+
+    /// The environment checked against.
+    pub fn environment(&self) -> &'a Environment {
+        self.env
+    }
+
+    /// Work done so far.
+    pub fn stats(&self) -> CheckStats {
+        self.stats
+    }
+
+    /// Link poses of the last configuration checked.
+    pub fn link_poses(&self) -> &[Pose] {
+        &self.poses
+    }
+
+    /// True when `q` is free of environment and self-collision. `q` must have the robot's DOF
+    /// (validate inputs with [`Robot::validate`] first).
+    #[inline]
+    pub fn is_valid(&mut self, q: &[f64]) -> bool {
+        self.stats.configs += 1;
+        if self.static_contact.is_some() {
+            return false;
+        }
+        self.update(q);
+        !self.env_contact_any() && self.self_contact(&self.moving_pairs).is_none()
+    }
+
+    /// What `q` touches first, or `None` when it is collision free.
+    pub fn contact(&mut self, q: &[f64]) -> Option<Contact> {
+        if let Some(c) = &self.static_contact {
+            return Some(c.clone());
+        }
+        self.update(q);
+        self.first_contact(&self.moving_links, &self.moving_pairs)
+    }
+
+    fn first_contact(&self, links: &[usize], pairs: &[(usize, usize)]) -> Option<Contact> {
+        let model = self.robot.spheres();
+        let names = self.robot.links();
+        for &li in links {
+            for s in model.ranges[li].clone() {
+                if let Some(o) = self.env.sphere_contact(self.centers[s], model.radius[s]) {
+                    return Some(Contact::Object {
+                        link: names[li].name.clone(),
+                        object: self.env.objects()[o].name.clone(),
+                    });
+                }
+            }
+        }
+        self.self_contact(pairs)
+            .map(|(a, b)| Contact::SelfCollision {
+                link_a: names[a].name.clone(),
+                link_b: names[b].name.clone(),
+            })
+    }
+
+    /// True when the straight motion from `a` to `b` is free at the checker's resolution.
+    /// Both ends are assumed valid; interior states are checked coarse to fine (bisection
+    /// order), so collisions in the middle are found early.
+    pub fn motion_valid(&mut self, a: &[f64], b: &[f64]) -> bool {
+        self.stats.motions += 1;
+        let n = (self.robot.distance(a, b) / self.resolution).ceil() as usize;
+        if n < 2 {
+            return true;
+        }
+        let mut step = 1usize << (usize::BITS - 1 - (n - 1).leading_zeros());
+        let mut q = std::mem::take(&mut self.scratch);
+        let mut ok = true;
+        'levels: while step >= 1 {
+            let mut k = step;
+            while k < n {
+                self.robot.interpolate(a, b, k as f64 / n as f64, &mut q);
+                if !self.is_valid(&q) {
+                    ok = false;
+                    break 'levels;
+                }
+                k += 2 * step;
+            }
+            step /= 2;
+        }
+        self.scratch = q;
+        ok
+    }
+
+    /// FK plus world positions of all spheres and link bounding spheres.
+    #[inline]
+    fn update(&mut self, q: &[f64]) {
+        self.robot.forward_kinematics(q, &mut self.poses);
+        let model = self.robot.spheres();
+        for (li, range) in model.ranges.iter().enumerate() {
+            let pose = &self.poses[li];
+            if let Some((c, _)) = model.bounds[li] {
+                let w = pose * Point3::from(c);
+                self.bounds[li] = [w.x, w.y, w.z];
+            }
+            for s in range.clone() {
+                let w = pose * Point3::from(model.center[s]);
+                self.centers[s] = [w.x, w.y, w.z];
+            }
+        }
+    }
+
+    fn env_contact_any(&self) -> bool {
+        let model = self.robot.spheres();
+        for &li in &self.moving_links {
+            let range = &model.ranges[li];
+            let Some((_, bound_r)) = model.bounds[li] else {
+                continue;
+            };
+            let mask = self.env.sphere_candidates(self.bounds[li], bound_r);
+            if mask == 0 {
+                continue;
+            }
+            for s in range.clone() {
+                if self
+                    .env
+                    .sphere_collides_masked(self.centers[s], model.radius[s], mask)
+                {
+                    return true;
+                }
+            }
+        }
+        false
+    }
+
+    fn self_contact(&self, pairs: &[(usize, usize)]) -> Option<(usize, usize)> {
+        let model = self.robot.spheres();
+        for &(a, b) in pairs {
+            let (Some((_, ra)), Some((_, rb))) = (model.bounds[a], model.bounds[b]) else {
+                continue;
+            };
+            if dist2(self.bounds[a], self.bounds[b]) > (ra + rb) * (ra + rb) {
+                continue;
+            }
+            for i in model.ranges[a].clone() {
+                // Per-sphere broad phase against the other link's bounding sphere.
+                let reach = model.radius[i] + rb;
+                if dist2(self.centers[i], self.bounds[b]) > reach * reach {
+                    continue;
+                }
+                for j in model.ranges[b].clone() {
+                    let r = model.radius[i] + model.radius[j];
+                    if dist2(self.centers[i], self.centers[j]) < r * r {
+                        return Some((a, b));
+                    }
+                }
+            }
+        }
+        None
+    }
+}
+
+#[inline]
+fn dist2(a: [f64; 3], b: [f64; 3]) -> f64 {
+    let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+}

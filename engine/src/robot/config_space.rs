@@ -1,0 +1,205 @@
+//! The planning group's configuration space: limits, wrapping of continuous joints, distances
+//! and interpolation.
+//!
+//! The metric is Euclidean over joint differences, where a continuous joint's difference is the
+//! shortest signed angle. Radians and metres are mixed as they are in MoveIt and OMPL.
+
+use super::Robot;
+use rand::Rng;
+use std::f64::consts::PI;
+use thiserror::Error;
+
+/// A configuration that cannot be used.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum ConfigError {
+    /// The configuration has the wrong number of values.
+    #[error("configuration has {got} values, the planning group has {expected} joints")]
+    WrongLength {
+        /// Degrees of freedom of the group.
+        expected: usize,
+        /// Values given.
+        got: usize,
+    },
+    /// A value is NaN or infinite.
+    #[error("joint {joint} (index {index}) is not a finite number")]
+    NotFinite {
+        /// Joint name.
+        joint: String,
+        /// Index in the configuration.
+        index: usize,
+    },
+    /// A value is outside the joint's limits.
+    #[error("joint {joint} is {value}, outside its limits [{lower}, {upper}]")]
+    OutOfLimits {
+        /// Joint name.
+        joint: String,
+        /// The value given.
+        value: f64,
+        /// Lower limit.
+        lower: f64,
+        /// Upper limit.
+        upper: f64,
+    },
+}
+
+/// Slack allowed on limits when validating configurations that went through text formats.
+pub const LIMIT_TOLERANCE: f64 = 1e-6;
+
+/// Wraps an angle into `[-π, π)`.
+#[inline]
+pub fn wrap_angle(a: f64) -> f64 {
+    let w = (a + PI).rem_euclid(2.0 * PI) - PI;
+    if w >= PI {
+        w - 2.0 * PI
+    } else {
+        w
+    }
+}
+
+impl Robot {
+    /// Checks length, finiteness and limits (continuous joints accept any finite value).
+    ///
+    /// ```
+    /// let fetch = ember_engine::robot::Robot::builtin("fetch").unwrap();
+    /// assert!(fetch.validate(fetch.named_state("stow").unwrap()).is_ok());
+    /// assert!(fetch.validate(&[0.0; 3]).is_err());
+    /// ```
+    pub fn validate(&self, q: &[f64]) -> Result<(), ConfigError> {
+        if q.len() != self.dof() {
+            return Err(ConfigError::WrongLength {
+                expected: self.dof(),
+                got: q.len(),
+            });
+        }
+        for (index, (v, var)) in q.iter().zip(&self.variables).enumerate() {
+            if !v.is_finite() {
+                return Err(ConfigError::NotFinite {
+                    joint: var.name.clone(),
+                    index,
+                });
+            }
+            if !var.continuous
+                && (*v < var.lower - LIMIT_TOLERANCE || *v > var.upper + LIMIT_TOLERANCE)
+            {
+                return Err(ConfigError::OutOfLimits {
+                    joint: var.name.clone(),
+                    value: *v,
+                    lower: var.lower,
+                    upper: var.upper,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Brings `q` into the canonical range: continuous joints wrapped to `[-π, π)`, others
+    /// clamped to their limits.
+    pub fn enforce_bounds(&self, q: &mut [f64]) {
+        for (v, var) in q.iter_mut().zip(&self.variables) {
+            *v = if var.continuous {
+                wrap_angle(*v)
+            } else {
+                v.clamp(var.lower, var.upper)
+            };
+        }
+    }
+
+    /// Per-joint difference `b - a`, the shortest way round for continuous joints.
+    #[inline]
+    pub fn joint_delta(&self, i: usize, a: f64, b: f64) -> f64 {
+        if self.variables[i].continuous {
+            wrap_angle(b - a)
+        } else {
+            b - a
+        }
+    }
+
+    /// Distance between two configurations (Euclidean over joint deltas).
+    ///
+    /// ```
+    /// use std::f64::consts::PI;
+    /// let fetch = ember_engine::robot::Robot::builtin("fetch").unwrap();
+    /// let a = [0.0; 8];
+    /// let mut b = [0.0; 8];
+    /// b[3] = 2.0 * PI - 0.1; // upperarm_roll is continuous: the short way is 0.1
+    /// assert!((fetch.distance(&a, &b) - 0.1).abs() < 1e-9);
+    /// ```
+    #[inline]
+    pub fn distance(&self, a: &[f64], b: &[f64]) -> f64 {
+        let mut s = 0.0;
+        for i in 0..a.len() {
+            let d = self.joint_delta(i, a[i], b[i]);
+            s += d * d;
+        }
+        s.sqrt()
+    }
+
+    /// Writes the configuration a fraction `t` of the way from `a` to `b` into `out`.
+    #[inline]
+    pub fn interpolate(&self, a: &[f64], b: &[f64], t: f64, out: &mut [f64]) {
+        for i in 0..a.len() {
+            let v = a[i] + t * self.joint_delta(i, a[i], b[i]);
+            out[i] = if self.variables[i].continuous {
+                wrap_angle(v)
+            } else {
+                v
+            };
+        }
+    }
+
+    /// Draws a configuration uniformly within the limits into `out`.
+    #[inline]
+    pub fn sample_uniform<R: Rng + ?Sized>(&self, rng: &mut R, out: &mut [f64]) {
+        for (v, var) in out.iter_mut().zip(&self.variables) {
+            *v = rng.random_range(var.lower..var.upper);
+        }
+    }
+
+    /// Sum of joint ranges (continuous joints count 2π): OMPL's maximum extent.
+    pub fn extent(&self) -> f64 {
+        self.variables.iter().map(|v| v.upper - v.lower).sum()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wrap_angle_maps_into_half_open_range() {
+        for a in [-7.0, -PI, -1.0, 0.0, 1.0, PI, 7.0, 100.0] {
+            let sut = wrap_angle(a);
+            assert!((-PI..PI).contains(&sut), "{a} -> {sut}");
+            assert!(
+                ((sut - a) / (2.0 * PI)).fract().abs() < 1e-9
+                    || ((sut - a) / (2.0 * PI)).fract().abs() > 1.0 - 1e-9
+            );
+        }
+    }
+
+    #[test]
+    fn validate_names_the_bad_joint() {
+        let sut = Robot::builtin("fetch").unwrap();
+        let mut q = sut.named_state("stow").unwrap().to_vec();
+        q[4] = 3.0;
+        let err = sut.validate(&q).unwrap_err();
+        assert!(
+            matches!(err, ConfigError::OutOfLimits { ref joint, .. } if joint == "elbow_flex_joint")
+        );
+        q[4] = f64::NAN;
+        assert!(matches!(
+            sut.validate(&q),
+            Err(ConfigError::NotFinite { index: 4, .. })
+        ));
+    }
+
+    #[test]
+    fn interpolation_takes_the_short_way_round() {
+        let sut = Robot::builtin("fetch").unwrap();
+        let a = [0.0, 0.0, 0.0, 3.0, 0.0, 0.0, 0.0, 0.0];
+        let b = [0.0, 0.0, 0.0, -3.0, 0.0, 0.0, 0.0, 0.0];
+        let mut mid = [0.0; 8];
+        sut.interpolate(&a, &b, 0.5, &mut mid);
+        assert!((mid[3].abs() - PI).abs() < 1e-9);
+    }
+}

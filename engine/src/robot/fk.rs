@@ -1,0 +1,52 @@
+//! Forward kinematics: the pose of every link in the robot's base frame.
+
+use super::{ConfigError, Motion, Robot};
+use crate::Pose;
+use nalgebra::{Translation3, UnitQuaternion};
+
+impl Robot {
+    /// Writes the base-frame pose of every link for configuration `q` into `poses`
+    /// (indexed like [`Robot::links`]). No checks, no allocation: the planner's inner loop.
+    ///
+    /// `q` must have [`Robot::dof`] values and `poses` one slot per link.
+    #[inline]
+    pub fn forward_kinematics(&self, q: &[f64], poses: &mut [Pose]) {
+        debug_assert_eq!(q.len(), self.dof());
+        debug_assert_eq!(poses.len(), self.links.len());
+        for (i, link) in self.links.iter().enumerate() {
+            let local = match link.motion {
+                Motion::Fixed => link.origin,
+                Motion::Revolute { axis, variable } => {
+                    link.origin * UnitQuaternion::from_axis_angle(&axis, q[variable])
+                }
+                Motion::Prismatic { axis, variable } => {
+                    link.origin * Translation3::from(axis.into_inner() * q[variable])
+                }
+            };
+            poses[i] = match link.parent {
+                None => local,
+                Some(p) => poses[p] * local,
+            };
+        }
+    }
+
+    /// Base-frame poses of all links, after validating `q`.
+    ///
+    /// ```
+    /// let fetch = ember_engine::robot::Robot::builtin("fetch").unwrap();
+    /// let poses = fetch.link_poses(&[0.0; 8]).unwrap();
+    /// let gripper = &poses[fetch.link_index("gripper_link").unwrap()];
+    /// assert!((gripper.translation.x - 1.1281).abs() < 1e-6);
+    /// ```
+    pub fn link_poses(&self, q: &[f64]) -> Result<Vec<Pose>, ConfigError> {
+        self.validate(q)?;
+        let mut poses = vec![Pose::identity(); self.links.len()];
+        self.forward_kinematics(q, &mut poses);
+        Ok(poses)
+    }
+
+    /// Base-frame pose of the group's tip link.
+    pub fn tip_pose(&self, q: &[f64]) -> Result<Pose, ConfigError> {
+        Ok(self.link_poses(q)?[self.tip])
+    }
+}

@@ -1,0 +1,284 @@
+//! The environment: named primitives posed in the robot base frame.
+
+use crate::collision::distance::distance_point_shape;
+use crate::collision::Shape;
+use crate::Pose;
+use nalgebra::Matrix3;
+use thiserror::Error;
+
+/// A named object in the world.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Object {
+    /// Unique name.
+    pub name: String,
+    /// Geometry in the object's frame.
+    pub shape: Shape,
+    /// Pose of the object's frame in the robot base frame.
+    pub pose: Pose,
+}
+
+/// An object that cannot be added or changed.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum WorldError {
+    /// Another object already has this name.
+    #[error("object '{0}' already exists")]
+    DuplicateName(String),
+    /// No object has this name.
+    #[error("no object named '{0}'")]
+    UnknownObject(String),
+    /// A dimension is zero, negative, NaN or infinite.
+    #[error("object '{name}' has an invalid shape {shape:?}")]
+    InvalidShape {
+        /// Object name.
+        name: String,
+        /// The shape given.
+        shape: Shape,
+    },
+    /// The pose has a NaN or infinite component.
+    #[error("object '{0}' has a non-finite pose")]
+    InvalidPose(String),
+}
+
+/// Precomputed world → object transform and broad-phase radius of one object.
+#[derive(Debug, Clone, Copy)]
+struct ObjectFrame {
+    /// Rows of the inverse rotation.
+    rot_t: [[f64; 3]; 3],
+    /// World position of the object's origin.
+    t: [f64; 3],
+    /// Radius of a ball about `t` containing the shape.
+    bound: f64,
+}
+
+impl ObjectFrame {
+    fn new(object: &Object) -> Self {
+        let r: Matrix3<f64> = object.pose.rotation.to_rotation_matrix().into_inner();
+        let rt = r.transpose();
+        let t = object.pose.translation.vector;
+        ObjectFrame {
+            rot_t: [
+                [rt[(0, 0)], rt[(0, 1)], rt[(0, 2)]],
+                [rt[(1, 0)], rt[(1, 1)], rt[(1, 2)]],
+                [rt[(2, 0)], rt[(2, 1)], rt[(2, 2)]],
+            ],
+            t: [t.x, t.y, t.z],
+            bound: object.shape.bounding_radius(),
+        }
+    }
+
+    #[inline]
+    fn to_local(&self, p: [f64; 3]) -> [f64; 3] {
+        let d = [p[0] - self.t[0], p[1] - self.t[1], p[2] - self.t[2]];
+        let m = &self.rot_t;
+        [
+            m[0][0] * d[0] + m[0][1] * d[1] + m[0][2] * d[2],
+            m[1][0] * d[0] + m[1][1] * d[1] + m[1][2] * d[2],
+            m[2][0] * d[0] + m[2][1] * d[1] + m[2][2] * d[2],
+        ]
+    }
+}
+
+/// Everything the robot must not touch, in the robot base frame.
+#[derive(Debug, Clone, Default)]
+pub struct Environment {
+    objects: Vec<Object>,
+    frames: Vec<ObjectFrame>,
+}
+
+impl Environment {
+    /// An empty environment.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// An environment holding `objects`.
+    pub fn from_objects(objects: impl IntoIterator<Item = Object>) -> Result<Self, WorldError> {
+        let mut env = Self::new();
+        for o in objects {
+            env.add(o)?;
+        }
+        Ok(env)
+    }
+
+    /// The objects, in insertion order.
+    pub fn objects(&self) -> &[Object] {
+        &self.objects
+    }
+
+    /// The object named `name`.
+    pub fn object(&self, name: &str) -> Option<&Object> {
+        self.objects.iter().find(|o| o.name == name)
+    }
+
+    /// Adds an object; its name must be new.
+    pub fn add(&mut self, object: Object) -> Result<(), WorldError> {
+        check(&object)?;
+        if self.object(&object.name).is_some() {
+            return Err(WorldError::DuplicateName(object.name));
+        }
+        self.frames.push(ObjectFrame::new(&object));
+        self.objects.push(object);
+        Ok(())
+    }
+
+    /// Adds the object or replaces the one with the same name.
+    pub fn upsert(&mut self, object: Object) -> Result<(), WorldError> {
+        check(&object)?;
+        match self.objects.iter().position(|o| o.name == object.name) {
+            Some(i) => {
+                self.frames[i] = ObjectFrame::new(&object);
+                self.objects[i] = object;
+            }
+            None => {
+                self.frames.push(ObjectFrame::new(&object));
+                self.objects.push(object);
+            }
+        }
+        Ok(())
+    }
+
+    /// Removes the object named `name` and returns it.
+    pub fn remove(&mut self, name: &str) -> Result<Object, WorldError> {
+        let i = self
+            .objects
+            .iter()
+            .position(|o| o.name == name)
+            .ok_or_else(|| WorldError::UnknownObject(name.to_string()))?;
+        self.frames.remove(i);
+        Ok(self.objects.remove(i))
+    }
+
+    /// True when a ball at `center` (base frame) with `radius` penetrates any object.
+    #[inline]
+    pub fn sphere_collides(&self, center: [f64; 3], radius: f64) -> bool {
+        self.sphere_contact(center, radius).is_some()
+    }
+
+    /// Index of the first object a ball at `center` with `radius` penetrates.
+    #[inline]
+    pub fn sphere_contact(&self, center: [f64; 3], radius: f64) -> Option<usize> {
+        for (i, (f, o)) in self.frames.iter().zip(&self.objects).enumerate() {
+            let d = [center[0] - f.t[0], center[1] - f.t[1], center[2] - f.t[2]];
+            let reach = radius + f.bound;
+            if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > reach * reach {
+                continue;
+            }
+            if distance_point_shape(f.to_local(center), &o.shape) < radius {
+                return Some(i);
+            }
+        }
+        None
+    }
+
+    /// Bit set of the objects a ball penetrates: bit `i` for object `i`, bit 63 for object 63
+    /// and every object after it. The broad phase of the checker.
+    #[inline]
+    pub(crate) fn sphere_candidates(&self, center: [f64; 3], radius: f64) -> u64 {
+        let mut mask = 0u64;
+        for (i, (f, o)) in self.frames.iter().zip(&self.objects).enumerate() {
+            let d = [center[0] - f.t[0], center[1] - f.t[1], center[2] - f.t[2]];
+            let reach = radius + f.bound;
+            if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > reach * reach {
+                continue;
+            }
+            if distance_point_shape(f.to_local(center), &o.shape) < radius {
+                mask |= 1u64 << i.min(63);
+            }
+        }
+        mask
+    }
+
+    /// True when a ball penetrates one of the objects selected by `mask` (see
+    /// [`Environment::sphere_candidates`]; bit 63 stands for object 63 and all after it).
+    #[inline]
+    pub(crate) fn sphere_collides_masked(&self, center: [f64; 3], radius: f64, mask: u64) -> bool {
+        let mut m = mask;
+        while m != 0 {
+            let i = m.trailing_zeros() as usize;
+            m &= m - 1;
+            let end = if i == 63 { self.objects.len() } else { i + 1 };
+            for j in i..end {
+                let f = &self.frames[j];
+                if distance_point_shape(f.to_local(center), &self.objects[j].shape) < radius {
+                    return true;
+                }
+            }
+        }
+        false
+    }
+}
+
+fn check(object: &Object) -> Result<(), WorldError> {
+    if !object.shape.is_valid() {
+        return Err(WorldError::InvalidShape {
+            name: object.name.clone(),
+            shape: object.shape,
+        });
+    }
+    let t = object.pose.translation.vector;
+    let q = object.pose.rotation.coords;
+    if !(t.iter().all(|v| v.is_finite()) && q.iter().all(|v| v.is_finite())) {
+        return Err(WorldError::InvalidPose(object.name.clone()));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Translation3, UnitQuaternion};
+
+    fn wall() -> Object {
+        Object {
+            name: "wall".into(),
+            shape: Shape::cuboid([0.1, 2.0, 2.0]),
+            pose: Pose::from_parts(
+                Translation3::new(1.0, 0.0, 1.0),
+                UnitQuaternion::from_euler_angles(0.0, 0.0, 0.3),
+            ),
+        }
+    }
+
+    #[test]
+    fn sphere_touching_rotated_box_collides() {
+        let sut = Environment::from_objects([wall()]).unwrap();
+        assert!(sut.sphere_collides([1.0, 0.0, 1.0], 0.01));
+        assert!(!sut.sphere_collides([0.5, 0.0, 1.0], 0.1));
+        assert!(sut.sphere_collides([0.5, 0.0, 1.0], 0.5));
+    }
+
+    #[test]
+    fn duplicate_and_invalid_objects_are_rejected() {
+        let mut sut = Environment::from_objects([wall()]).unwrap();
+        assert_eq!(
+            sut.add(wall()),
+            Err(WorldError::DuplicateName("wall".into()))
+        );
+        let mut bad = wall();
+        bad.name = "bad".into();
+        bad.shape = Shape::Sphere { radius: f64::NAN };
+        assert!(matches!(sut.add(bad), Err(WorldError::InvalidShape { .. })));
+    }
+
+    #[test]
+    fn masked_check_agrees_with_full_check() {
+        let mut objects = Vec::new();
+        for i in 0..70 {
+            objects.push(Object {
+                name: format!("o{i}"),
+                shape: Shape::Sphere { radius: 0.05 },
+                pose: Pose::translation(0.2 * i as f64, 0.0, 0.0),
+            });
+        }
+        let sut = Environment::from_objects(objects).unwrap();
+        for i in 0..140 {
+            let c = [0.1 * i as f64, 0.03, 0.0];
+            let mask = sut.sphere_candidates(c, 0.04);
+            assert_eq!(sut.sphere_collides(c, 0.04), mask != 0);
+            assert_eq!(
+                sut.sphere_collides(c, 0.04),
+                sut.sphere_collides_masked(c, 0.04, mask)
+            );
+        }
+    }
+}

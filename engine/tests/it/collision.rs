@@ -1,0 +1,171 @@
+//! Collision checking: named states, known collisions, sphere conservativeness, edge checks.
+
+use ember_engine::collision::checker::Contact;
+use ember_engine::collision::{parry, Shape, SphereChecker};
+use ember_engine::robot::Robot;
+use ember_engine::world::{Environment, Object};
+use ember_engine::Pose;
+
+#[test]
+fn named_states_are_collision_free() {
+    let env = Environment::new();
+    for (name, state) in [("fetch", "stow"), ("fetch", "tuck"), ("panda", "ready")] {
+        let robot = Robot::builtin(name).unwrap();
+        let mut sut = SphereChecker::new(&robot, &env);
+        let q = robot.named_state(state).unwrap();
+        assert_eq!(sut.contact(q), None, "{name} {state}");
+        assert!(sut.is_valid(q));
+    }
+}
+
+fn boxed(name: &str, size: [f64; 3], xyz: [f64; 3]) -> Object {
+    Object {
+        name: name.into(),
+        shape: Shape::cuboid(size),
+        pose: Pose::translation(xyz[0], xyz[1], xyz[2]),
+    }
+}
+
+#[test]
+fn known_colliding_configurations_are_reported() {
+    let fetch = Robot::builtin("fetch").unwrap();
+    // A box where the gripper is with the arm straight out.
+    let env =
+        Environment::from_objects([boxed("crate", [0.2, 0.2, 0.2], [1.1, 0.0, 0.78])]).unwrap();
+    let mut sut = SphereChecker::new(&fetch, &env);
+    let straight = [0.0; 8];
+    assert!(!sut.is_valid(&straight));
+    assert!(matches!(
+        sut.contact(&straight),
+        Some(Contact::Object { ref object, .. }) if object == "crate"
+    ));
+
+    // The forearm folded back into the torso: self-collision, in both models.
+    let empty = Environment::new();
+    let mut sut = SphereChecker::new(&fetch, &empty);
+    let folded = [0.0, 0.0, 0.0, 0.0, 2.25, 0.0, 0.0, 0.0];
+    assert!(!sut.is_valid(&folded));
+    assert!(matches!(
+        sut.contact(&folded),
+        Some(Contact::SelfCollision { .. })
+    ));
+
+    // The arm pushed down into the base.
+    let down = [0.0, 0.0, 1.518, 0.0, 0.0, 0.0, 0.0, 0.0];
+    assert!(!sut.is_valid(&down));
+}
+
+#[test]
+fn static_body_in_collision_blocks_every_configuration() {
+    let fetch = Robot::builtin("fetch").unwrap();
+    let env =
+        Environment::from_objects([boxed("pillar", [0.1, 0.1, 1.0], [0.0, 0.0, 0.5])]).unwrap();
+    let mut sut = SphereChecker::new(&fetch, &env);
+    let stow = fetch.named_state("stow").unwrap();
+    assert!(!sut.is_valid(stow));
+    assert!(matches!(
+        sut.contact(stow),
+        Some(Contact::Object { ref link, .. }) if link == "base_link"
+    ));
+}
+
+#[test]
+fn edge_check_catches_thin_obstacle_between_free_configurations() {
+    let panda = Robot::builtin("panda").unwrap();
+    let ready = panda.named_state("ready").unwrap().to_vec();
+    // A 1 cm plate in the x-z plane in front of the robot, which the hand sweeps through when
+    // joint 1 turns from -0.8 to 0.8.
+    let env =
+        Environment::from_objects([boxed("plate", [0.6, 0.01, 0.4], [0.5, 0.0, 0.5])]).unwrap();
+    let mut sut = SphereChecker::new(&panda, &env);
+    let mut a = ready.clone();
+    a[0] = -0.8;
+    let mut b = ready.clone();
+    b[0] = 0.8;
+    assert!(sut.is_valid(&a) && sut.is_valid(&b));
+    assert!(!sut.motion_valid(&a, &b));
+    // Moving on one side of the plate is fine.
+    let mut c = ready.clone();
+    c[0] = -0.72;
+    assert!(sut.motion_valid(&a, &c));
+}
+
+/// Where the exact primitives penetrate an obstacle, the sphere model reports a collision too.
+/// Random configurations and random obstacles placed near a moving link; a seeded loop rather
+/// than proptest so the share of real contacts can be asserted (the test must bite).
+#[test]
+fn sphere_model_is_conservative() {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(7);
+    for robot_name in ["fetch", "panda"] {
+        let robot = Robot::builtin(robot_name).unwrap();
+        let moving: Vec<usize> = (0..robot.links().len())
+            .filter(|&l| robot.link_moves(l) && !robot.links()[l].collision.is_empty())
+            .collect();
+        let mut contacts = 0;
+        let cases = 600;
+        for _ in 0..cases {
+            let mut q = vec![0.0; robot.dof()];
+            robot.sample_uniform(&mut rng, &mut q);
+            let poses = robot.link_poses(&q).unwrap();
+            let near = poses[moving[rng.random_range(0..moving.len())]]
+                .translation
+                .vector;
+            let d = [0, 1, 2].map(|_| rng.random_range(0.02..0.25));
+            let kind = rng.random_range(0..4);
+            let shape = |shrink: f64| match kind {
+                0 => Shape::Sphere {
+                    radius: d[0] - shrink,
+                },
+                1 => Shape::Box {
+                    half_extents: [d[0] - shrink, d[1] - shrink, d[2] - shrink],
+                },
+                2 => Shape::Cylinder {
+                    radius: d[0] - shrink,
+                    half_length: d[1] - shrink,
+                },
+                _ => Shape::Capsule {
+                    radius: d[0] - shrink,
+                    half_length: d[1],
+                },
+            };
+            let pose = Pose::from_parts(
+                nalgebra::Translation3::new(
+                    near.x + rng.random_range(-0.3..0.3),
+                    near.y + rng.random_range(-0.3..0.3),
+                    near.z + rng.random_range(-0.3..0.3),
+                ),
+                nalgebra::UnitQuaternion::from_euler_angles(
+                    rng.random_range(-3.0..3.0),
+                    rng.random_range(-3.0..3.0),
+                    rng.random_range(-3.0..3.0),
+                ),
+            );
+            // Shrunk by 1 mm for the exact test, so a contact it reports is a real penetration.
+            let probe = Object {
+                name: "probe".into(),
+                shape: shape(0.001),
+                pose,
+            };
+            if parry::robot_object_distance(&robot, &poses, &probe) > 0.0 {
+                continue;
+            }
+            contacts += 1;
+            let env = Environment::from_objects([Object {
+                name: "o".into(),
+                shape: shape(0.0),
+                pose,
+            }])
+            .unwrap();
+            let mut sut = SphereChecker::new(&robot, &env);
+            assert!(
+                !sut.is_valid(&q),
+                "{robot_name}: exact contact missed by spheres at {q:?}, {probe:?}"
+            );
+        }
+        assert!(
+            contacts > cases / 10,
+            "{robot_name}: only {contacts} contacts; the test does not bite"
+        );
+    }
+}

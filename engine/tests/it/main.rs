@@ -1,0 +1,4 @@
+//! Engine integration tests, one binary.
+
+mod collision;
+mod fk;
