@@ -3,11 +3,15 @@
 //!
 //! Layout: [`robot`] (descriptions, kinematics, sphere models), [`collision`] (shapes, distance
 //! queries, the fast sphere checker and the exact parry3d path), [`world`] (what the robot plans
-//! in).
+//! in), [`scene`] (scenes and MoveIt interchange), [`planning`] (RRT-Connect, simplification,
+//! inverse kinematics).
 #![warn(missing_docs)]
 
 pub mod collision;
+pub mod planning;
+pub mod problems;
 pub mod robot;
+pub mod scene;
 pub mod world;
 
 /// A pose: rotation and translation, metres, as used at every boundary of the engine.

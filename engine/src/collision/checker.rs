@@ -5,9 +5,9 @@
 //! Per link, the link's bounding sphere is tested first (broad phase); only the objects it
 //! touches are tested against the link's spheres. Nothing here allocates after construction.
 
+use crate::robot::fk::Frame;
 use crate::robot::Robot;
 use crate::world::Environment;
-use crate::Pose;
 use nalgebra::Point3;
 
 /// Default edge-check resolution in configuration-space distance (1/32, as VAMP uses).
@@ -65,9 +65,16 @@ pub struct SphereChecker<'a> {
     robot: &'a Robot,
     env: &'a Environment,
     resolution: f64,
-    poses: Vec<Pose>,
-    centers: Vec<[f64; 3]>,
+    poses: Vec<Frame>,
+    /// World positions, computed lazily per configuration: link bounds eagerly, a link's
+    /// cluster centres when first needed (`link_stamp`), a cluster's spheres likewise
+    /// (`cluster_stamp`). A stamp equal to `epoch` means current; `STATIC` means placed once.
     bounds: Vec<[f64; 3]>,
+    cluster_centers: Vec<[f64; 3]>,
+    centers: Vec<[f64; 3]>,
+    link_stamp: Vec<u32>,
+    cluster_stamp: Vec<u32>,
+    epoch: u32,
     scratch: Vec<f64>,
     stats: CheckStats,
     /// Links with spheres that move with the group: the only ones checked per configuration.
@@ -86,9 +93,13 @@ impl<'a> SphereChecker<'a> {
             robot,
             env,
             resolution: DEFAULT_RESOLUTION,
-            poses: vec![Pose::identity(); n_links],
-            centers: vec![[0.0; 3]; robot.spheres().len()],
+            poses: vec![Frame::identity(); n_links],
             bounds: vec![[0.0; 3]; n_links],
+            cluster_centers: vec![[0.0; 3]; robot.spheres().clusters.len()],
+            centers: vec![[0.0; 3]; robot.spheres().len()],
+            link_stamp: vec![0; n_links],
+            cluster_stamp: vec![0; robot.spheres().clusters.len()],
+            epoch: 0,
             scratch: vec![0.0; robot.dof()],
             stats: CheckStats::default(),
             moving_links: Vec::new(),
@@ -109,7 +120,17 @@ impl<'a> SphereChecker<'a> {
             .iter()
             .map(|v| (v.lower + v.upper) / 2.0)
             .collect();
-        sut.update(&q);
+        robot.forward_kinematics_frames(&q, &mut sut.poses);
+        sut.epoch = 1;
+        for &l in &fixed {
+            sut.place_bound(l);
+            sut.place_clusters(l);
+            for ci in robot.spheres().link_clusters[l].clone() {
+                sut.place_spheres(ci, l);
+                sut.cluster_stamp[ci] = STATIC;
+            }
+            sut.link_stamp[l] = STATIC;
+        }
         sut.static_contact = sut.first_contact(&fixed, &fixed_pairs);
         sut.moving_links = moving;
         sut.moving_pairs = moving_pairs;
@@ -142,8 +163,8 @@ impl<'a> SphereChecker<'a> {
         self.stats
     }
 
-    /// Link poses of the last configuration checked.
-    pub fn link_poses(&self) -> &[Pose] {
+    /// Link frames of the last configuration checked.
+    pub fn link_frames(&self) -> &[Frame] {
         &self.poses
     }
 
@@ -156,7 +177,13 @@ impl<'a> SphereChecker<'a> {
             return false;
         }
         self.update(q);
-        !self.env_contact_any() && self.self_contact(&self.moving_pairs).is_none()
+        if self.env_contact_any() {
+            return false;
+        }
+        let pairs = std::mem::take(&mut self.moving_pairs);
+        let free = self.self_contact(&pairs).is_none();
+        self.moving_pairs = pairs;
+        free
     }
 
     /// What `q` touches first, or `None` when it is collision free.
@@ -165,19 +192,29 @@ impl<'a> SphereChecker<'a> {
             return Some(c.clone());
         }
         self.update(q);
-        self.first_contact(&self.moving_links, &self.moving_pairs)
+        let links = std::mem::take(&mut self.moving_links);
+        let pairs = std::mem::take(&mut self.moving_pairs);
+        let contact = self.first_contact(&links, &pairs);
+        self.moving_links = links;
+        self.moving_pairs = pairs;
+        contact
     }
 
-    fn first_contact(&self, links: &[usize], pairs: &[(usize, usize)]) -> Option<Contact> {
-        let model = self.robot.spheres();
-        let names = self.robot.links();
+    fn first_contact(&mut self, links: &[usize], pairs: &[(usize, usize)]) -> Option<Contact> {
+        let robot = self.robot;
+        let model = robot.spheres();
+        let names = robot.links();
         for &li in links {
-            for s in model.ranges[li].clone() {
-                if let Some(o) = self.env.sphere_contact(self.centers[s], model.radius[s]) {
-                    return Some(Contact::Object {
-                        link: names[li].name.clone(),
-                        object: self.env.objects()[o].name.clone(),
-                    });
+            self.place_clusters(li);
+            for ci in model.link_clusters[li].clone() {
+                self.place_spheres(ci, li);
+                for s in model.clusters[ci].range.clone() {
+                    if let Some(o) = self.env.sphere_contact(self.centers[s], model.radius[s]) {
+                        return Some(Contact::Object {
+                            link: names[li].name.clone(),
+                            object: self.env.objects()[o].name.clone(),
+                        });
+                    }
                 }
             }
         }
@@ -216,28 +253,70 @@ impl<'a> SphereChecker<'a> {
         ok
     }
 
-    /// FK plus world positions of all spheres and link bounding spheres.
+    /// FK and world bounds of the moving links; clusters and spheres are placed on demand.
     #[inline]
     fn update(&mut self, q: &[f64]) {
-        self.robot.forward_kinematics(q, &mut self.poses);
-        let model = self.robot.spheres();
-        for (li, range) in model.ranges.iter().enumerate() {
-            let pose = &self.poses[li];
-            if let Some((c, _)) = model.bounds[li] {
-                let w = pose * Point3::from(c);
-                self.bounds[li] = [w.x, w.y, w.z];
+        self.robot.forward_kinematics_frames(q, &mut self.poses);
+        self.epoch += 1;
+        if self.epoch == STATIC {
+            // Wrapped: forget every stamp of the moving links.
+            for &l in &self.moving_links {
+                self.link_stamp[l] = 0;
+                for ci in self.robot.spheres().link_clusters[l].clone() {
+                    self.cluster_stamp[ci] = 0;
+                }
             }
-            for s in range.clone() {
-                let w = pose * Point3::from(model.center[s]);
-                self.centers[s] = [w.x, w.y, w.z];
-            }
+            self.epoch = 1;
+        }
+        for k in 0..self.moving_links.len() {
+            self.place_bound(self.moving_links[k]);
         }
     }
 
-    fn env_contact_any(&self) -> bool {
+    #[inline]
+    fn place_bound(&mut self, li: usize) {
+        if let Some((c, _)) = self.robot.spheres().bounds[li] {
+            let w = self.poses[li] * Point3::from(c);
+            self.bounds[li] = [w.x, w.y, w.z];
+        }
+    }
+
+    /// Places link `li`'s cluster centres unless current.
+    #[inline]
+    fn place_clusters(&mut self, li: usize) {
+        let stamp = self.link_stamp[li];
+        if stamp == self.epoch || stamp == STATIC {
+            return;
+        }
+        self.link_stamp[li] = self.epoch;
         let model = self.robot.spheres();
-        for &li in &self.moving_links {
-            let range = &model.ranges[li];
+        let pose = &self.poses[li];
+        for ci in model.link_clusters[li].clone() {
+            let w = pose * Point3::from(model.clusters[ci].center);
+            self.cluster_centers[ci] = [w.x, w.y, w.z];
+        }
+    }
+
+    /// Places cluster `ci`'s spheres (of link `li`) unless current.
+    #[inline]
+    fn place_spheres(&mut self, ci: usize, li: usize) {
+        let stamp = self.cluster_stamp[ci];
+        if stamp == self.epoch || stamp == STATIC {
+            return;
+        }
+        self.cluster_stamp[ci] = self.epoch;
+        let model = self.robot.spheres();
+        let pose = &self.poses[li];
+        for s in model.clusters[ci].range.clone() {
+            let w = pose * Point3::from(model.center[s]);
+            self.centers[s] = [w.x, w.y, w.z];
+        }
+    }
+
+    fn env_contact_any(&mut self) -> bool {
+        let model = self.robot.spheres();
+        for k in 0..self.moving_links.len() {
+            let li = self.moving_links[k];
             let Some((_, bound_r)) = model.bounds[li] else {
                 continue;
             };
@@ -245,43 +324,79 @@ impl<'a> SphereChecker<'a> {
             if mask == 0 {
                 continue;
             }
-            for s in range.clone() {
-                if self
-                    .env
-                    .sphere_collides_masked(self.centers[s], model.radius[s], mask)
-                {
-                    return true;
+            self.place_clusters(li);
+            for ci in model.link_clusters[li].clone() {
+                let cluster = &model.clusters[ci];
+                let cmask =
+                    self.env
+                        .candidates_masked(self.cluster_centers[ci], cluster.radius, mask);
+                if cmask == 0 {
+                    continue;
+                }
+                self.place_spheres(ci, li);
+                for s in cluster.range.clone() {
+                    if self
+                        .env
+                        .sphere_collides_masked(self.centers[s], model.radius[s], cmask)
+                    {
+                        return true;
+                    }
                 }
             }
         }
         false
     }
 
-    fn self_contact(&self, pairs: &[(usize, usize)]) -> Option<(usize, usize)> {
+    fn self_contact(&mut self, pairs: &[(usize, usize)]) -> Option<(usize, usize)> {
         let model = self.robot.spheres();
         for &(a, b) in pairs {
             let (Some((_, ra)), Some((_, rb))) = (model.bounds[a], model.bounds[b]) else {
                 continue;
             };
-            if dist2(self.bounds[a], self.bounds[b]) > (ra + rb) * (ra + rb) {
+            if !overlap(self.bounds[a], ra, self.bounds[b], rb) {
                 continue;
             }
-            for i in model.ranges[a].clone() {
-                // Per-sphere broad phase against the other link's bounding sphere.
-                let reach = model.radius[i] + rb;
-                if dist2(self.centers[i], self.bounds[b]) > reach * reach {
+            self.place_clusters(a);
+            self.place_clusters(b);
+            for ca in model.link_clusters[a].clone() {
+                let cla = &model.clusters[ca];
+                let pa = self.cluster_centers[ca];
+                if !overlap(pa, cla.radius, self.bounds[b], rb) {
                     continue;
                 }
-                for j in model.ranges[b].clone() {
-                    let r = model.radius[i] + model.radius[j];
-                    if dist2(self.centers[i], self.centers[j]) < r * r {
-                        return Some((a, b));
+                for cb in model.link_clusters[b].clone() {
+                    let clb = &model.clusters[cb];
+                    if !overlap(pa, cla.radius, self.cluster_centers[cb], clb.radius) {
+                        continue;
+                    }
+                    self.place_spheres(ca, a);
+                    self.place_spheres(cb, b);
+                    for i in cla.range.clone() {
+                        for j in clb.range.clone() {
+                            if overlap(
+                                self.centers[i],
+                                model.radius[i],
+                                self.centers[j],
+                                model.radius[j],
+                            ) {
+                                return Some((a, b));
+                            }
+                        }
                     }
                 }
             }
         }
         None
     }
+}
+
+/// Stamp of positions that never change (links that do not move).
+const STATIC: u32 = u32::MAX;
+
+#[inline]
+fn overlap(a: [f64; 3], ra: f64, b: [f64; 3], rb: f64) -> bool {
+    let r = ra + rb;
+    dist2(a, b) < r * r
 }
 
 #[inline]

@@ -2,12 +2,10 @@
 //! [`super::parry`].
 
 use nalgebra::Vector3;
-use serde::{Deserialize, Serialize};
 
 /// A convex primitive in its own frame: boxes are centred, cylinders and capsules run along
 /// local **z** (the URDF convention). Metres.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "type", rename_all = "lowercase")]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Shape {
     /// A ball of the given radius.
     Sphere {

@@ -2,7 +2,11 @@
 
 use super::{ConfigError, Motion, Robot};
 use crate::Pose;
-use nalgebra::{Translation3, UnitQuaternion};
+use nalgebra::{IsometryMatrix3, Rotation3, Translation3, UnitQuaternion};
+
+/// A link frame as rotation matrix plus translation: the checker's representation, cheaper
+/// than quaternions for transforming many points.
+pub type Frame = IsometryMatrix3<f64>;
 
 impl Robot {
     /// Writes the base-frame pose of every link for configuration `q` into `poses`
@@ -26,6 +30,30 @@ impl Robot {
             poses[i] = match link.parent {
                 None => local,
                 Some(p) => poses[p] * local,
+            };
+        }
+    }
+
+    /// Like [`Robot::forward_kinematics`], writing rotation-matrix [`Frame`]s (the form the
+    /// collision checker uses).
+    #[inline]
+    pub fn forward_kinematics_frames(&self, q: &[f64], frames: &mut [Frame]) {
+        debug_assert_eq!(q.len(), self.dof());
+        debug_assert_eq!(frames.len(), self.links.len());
+        for (i, link) in self.links.iter().enumerate() {
+            let origin = &self.origin_frames[i];
+            let local = match link.motion {
+                Motion::Fixed => *origin,
+                Motion::Revolute { axis, variable } => {
+                    origin * Rotation3::from_axis_angle(&axis, q[variable])
+                }
+                Motion::Prismatic { axis, variable } => {
+                    origin * Translation3::from(axis.into_inner() * q[variable])
+                }
+            };
+            frames[i] = match link.parent {
+                None => local,
+                Some(p) => frames[p] * local,
             };
         }
     }

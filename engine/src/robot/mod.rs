@@ -93,6 +93,8 @@ pub struct Robot {
     pub(crate) named_states: Vec<(String, Vec<f64>)>,
     pub(crate) self_pairs: Vec<(usize, usize)>,
     pub(crate) spheres: SphereModel,
+    /// Joint origins as rotation-matrix frames (for [`Robot::forward_kinematics_frames`]).
+    pub(crate) origin_frames: Vec<fk::Frame>,
 }
 
 impl Robot {

@@ -12,17 +12,38 @@ use nalgebra::{Point3, Vector3};
 use serde::Deserialize;
 
 /// Parameters of sphere generation (the `[spheres]` table of the robot file).
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SpherizeParams {
     /// How far a sphere may stick out of its primitive, metres.
     pub max_growth: f64,
+    /// Per-link overrides of `max_growth` (coarser spheres for large body parts).
+    #[serde(default)]
+    pub links: std::collections::BTreeMap<String, f64>,
 }
 
 impl Default for SpherizeParams {
     fn default() -> Self {
-        Self { max_growth: 0.03 }
+        Self {
+            max_growth: 0.03,
+            links: Default::default(),
+        }
     }
+}
+
+/// Largest number of spheres in one cluster (one SIMD register of f32 lanes).
+pub const CLUSTER_SIZE: usize = 8;
+
+/// A group of at most [`CLUSTER_SIZE`] neighbouring spheres of one link, with a bounding sphere:
+/// the middle level of the checker's hierarchy (link → cluster → sphere).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Cluster {
+    /// Range of the cluster's spheres in the model's arrays.
+    pub range: std::ops::Range<usize>,
+    /// Centre of the bounding sphere, link frame.
+    pub center: [f64; 3],
+    /// Radius of the bounding sphere.
+    pub radius: f64,
 }
 
 /// Flat arrays of spheres grouped by link: centre in the link frame and radius.
@@ -38,6 +59,10 @@ pub struct SphereModel {
     pub ranges: Vec<std::ops::Range<usize>>,
     /// Per link: a sphere (centre in the link frame, radius) containing all its spheres.
     pub bounds: Vec<Option<([f64; 3], f64)>>,
+    /// Clusters of neighbouring spheres, grouped by link.
+    pub clusters: Vec<Cluster>,
+    /// Per link: the range of its clusters.
+    pub link_clusters: Vec<std::ops::Range<usize>>,
 }
 
 impl SphereModel {
@@ -51,17 +76,41 @@ impl SphereModel {
         self.radius.is_empty()
     }
 
-    /// Generates spheres covering every collision primitive of every link.
+    /// Generates spheres covering every collision primitive of every link, grouped into
+    /// clusters of neighbours.
     pub fn generate(links: &[Link], params: &SpherizeParams) -> Self {
         let mut model = SphereModel::default();
         for (i, link) in links.iter().enumerate() {
+            let growth = params
+                .links
+                .get(&link.name)
+                .copied()
+                .unwrap_or(params.max_growth);
+            let mut spheres: Vec<([f64; 3], f64)> = link
+                .collision
+                .iter()
+                .flat_map(|ls| spherize(ls, growth))
+                .collect();
             let start = model.len();
-            for ls in &link.collision {
-                for (c, r) in spherize(ls, params.max_growth) {
+            let cluster_start = model.clusters.len();
+            let mut groups = Vec::new();
+            split_clusters(&mut spheres, &mut groups);
+            for group in groups {
+                let first = model.len();
+                for (c, r) in group {
                     model.link.push(i as u32);
                     model.center.push(c);
                     model.radius.push(r);
                 }
+                let range = first..model.len();
+                let (center, radius) =
+                    bounding_sphere(&model.center[range.clone()], &model.radius[range.clone()])
+                        .expect("clusters are not empty");
+                model.clusters.push(Cluster {
+                    range,
+                    center,
+                    radius,
+                });
             }
             let range = start..model.len();
             model.bounds.push(bounding_sphere(
@@ -69,9 +118,41 @@ impl SphereModel {
                 &model.radius[range.clone()],
             ));
             model.ranges.push(range);
+            model
+                .link_clusters
+                .push(cluster_start..model.clusters.len());
         }
         model
     }
+}
+
+/// Splits spheres into spatially coherent groups of at most [`CLUSTER_SIZE`] (median split
+/// along the longest axis of the centres' extent).
+fn split_clusters(spheres: &mut [([f64; 3], f64)], out: &mut Vec<Vec<([f64; 3], f64)>>) {
+    if spheres.is_empty() {
+        return;
+    }
+    if spheres.len() <= CLUSTER_SIZE {
+        out.push(spheres.to_vec());
+        return;
+    }
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for (c, _) in spheres.iter() {
+        for k in 0..3 {
+            lo[k] = lo[k].min(c[k]);
+            hi[k] = hi[k].max(c[k]);
+        }
+    }
+    let axis = (0..3)
+        .max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b])))
+        .unwrap_or(0);
+    spheres.sort_by(|a, b| a.0[axis].total_cmp(&b.0[axis]));
+    // Split at a multiple of the cluster size so clusters come out full.
+    let half = spheres.len().div_ceil(2).div_ceil(CLUSTER_SIZE) * CLUSTER_SIZE;
+    let (a, b) = spheres.split_at_mut(half.min(spheres.len() - 1));
+    split_clusters(a, out);
+    split_clusters(b, out);
 }
 
 /// Spheres (centre in the link frame, radius) covering one posed primitive.

@@ -87,12 +87,14 @@ pub(crate) fn build(
                 }
                 (lo, hi, false)
             }
-            ref other => return Err(file_err(
-                format!("group joint '{name}'"),
-                format!(
+            ref other => {
+                return Err(file_err(
+                    format!("group joint '{name}'"),
+                    format!(
                     "is {other:?}; only revolute, continuous and prismatic joints can be planned"
                 ),
-            )),
+                ))
+            }
         };
         if variable_of_joint
             .insert(name.as_str(), variables.len())
@@ -232,7 +234,18 @@ pub(crate) fn build(
         named_states: Vec::new(),
         self_pairs,
         spheres: SphereModel::default(),
+        origin_frames: Vec::new(),
     };
+    robot.origin_frames = robot
+        .links
+        .iter()
+        .map(|l| {
+            super::fk::Frame::from_parts(
+                l.origin.translation,
+                l.origin.rotation.to_rotation_matrix(),
+            )
+        })
+        .collect();
     for (name, q) in &file.named_states {
         robot
             .validate(q)

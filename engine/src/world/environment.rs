@@ -46,8 +46,9 @@ struct ObjectFrame {
     rot_t: [[f64; 3]; 3],
     /// World position of the object's origin.
     t: [f64; 3],
-    /// Radius of a ball about `t` containing the shape.
-    bound: f64,
+    /// World axis-aligned bounding box of the shape: the broad phase.
+    lo: [f64; 3],
+    hi: [f64; 3],
 }
 
 impl ObjectFrame {
@@ -55,6 +56,9 @@ impl ObjectFrame {
         let r: Matrix3<f64> = object.pose.rotation.to_rotation_matrix().into_inner();
         let rt = r.transpose();
         let t = object.pose.translation.vector;
+        // World half extents of the rotated local box: |R| * h.
+        let h = object.shape.local_half_extents();
+        let extent = [0, 1, 2].map(|i| (0..3).map(|j| r[(i, j)].abs() * h[j]).sum::<f64>());
         ObjectFrame {
             rot_t: [
                 [rt[(0, 0)], rt[(0, 1)], rt[(0, 2)]],
@@ -62,12 +66,13 @@ impl ObjectFrame {
                 [rt[(2, 0)], rt[(2, 1)], rt[(2, 2)]],
             ],
             t: [t.x, t.y, t.z],
-            bound: object.shape.bounding_radius(),
+            lo: [0, 1, 2].map(|i| t[i] - extent[i]),
+            hi: [0, 1, 2].map(|i| t[i] + extent[i]),
         }
     }
 
     #[inline]
-    fn to_local(&self, p: [f64; 3]) -> [f64; 3] {
+    fn to_local(self, p: [f64; 3]) -> [f64; 3] {
         let d = [p[0] - self.t[0], p[1] - self.t[1], p[2] - self.t[2]];
         let m = &self.rot_t;
         [
@@ -157,54 +162,78 @@ impl Environment {
     /// Index of the first object a ball at `center` with `radius` penetrates.
     #[inline]
     pub fn sphere_contact(&self, center: [f64; 3], radius: f64) -> Option<usize> {
-        for (i, (f, o)) in self.frames.iter().zip(&self.objects).enumerate() {
-            let d = [center[0] - f.t[0], center[1] - f.t[1], center[2] - f.t[2]];
-            let reach = radius + f.bound;
-            if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > reach * reach {
-                continue;
-            }
-            if distance_point_shape(f.to_local(center), &o.shape) < radius {
-                return Some(i);
-            }
-        }
-        None
+        (0..self.objects.len()).find(|&j| self.penetrates(j, center, radius))
     }
 
     /// Bit set of the objects a ball penetrates: bit `i` for object `i`, bit 63 for object 63
     /// and every object after it. The broad phase of the checker.
     #[inline]
     pub(crate) fn sphere_candidates(&self, center: [f64; 3], radius: f64) -> u64 {
-        let mut mask = 0u64;
-        for (i, (f, o)) in self.frames.iter().zip(&self.objects).enumerate() {
-            let d = [center[0] - f.t[0], center[1] - f.t[1], center[2] - f.t[2]];
-            let reach = radius + f.bound;
-            if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > reach * reach {
-                continue;
-            }
-            if distance_point_shape(f.to_local(center), &o.shape) < radius {
-                mask |= 1u64 << i.min(63);
-            }
-        }
-        mask
+        self.candidates_masked(center, radius, self.all_mask())
     }
 
-    /// True when a ball penetrates one of the objects selected by `mask` (see
-    /// [`Environment::sphere_candidates`]; bit 63 stands for object 63 and all after it).
+    /// The mask selecting every object.
+    #[inline]
+    fn all_mask(&self) -> u64 {
+        match self.objects.len() {
+            n if n >= 64 => u64::MAX,
+            n => (1u64 << n) - 1,
+        }
+    }
+
+    /// Like [`Environment::sphere_candidates`], looking only at the objects in `mask`.
+    #[inline]
+    pub(crate) fn candidates_masked(&self, center: [f64; 3], radius: f64, mask: u64) -> u64 {
+        let mut out = 0u64;
+        self.scan_masked(mask, |j| {
+            if self.penetrates(j, center, radius) {
+                out |= 1u64 << j.min(63);
+            }
+            false
+        });
+        out
+    }
+
+    /// True when a ball penetrates one of the objects in `mask`.
     #[inline]
     pub(crate) fn sphere_collides_masked(&self, center: [f64; 3], radius: f64, mask: u64) -> bool {
+        self.scan_masked(mask, |j| self.penetrates(j, center, radius))
+    }
+
+    /// Calls `f` for each object index in `mask` until it returns true; returns whether it did.
+    #[inline]
+    fn scan_masked(&self, mask: u64, mut f: impl FnMut(usize) -> bool) -> bool {
         let mut m = mask;
         while m != 0 {
             let i = m.trailing_zeros() as usize;
             m &= m - 1;
-            let end = if i == 63 { self.objects.len() } else { i + 1 };
+            let end = if i == 63 {
+                self.objects.len()
+            } else {
+                (i + 1).min(self.objects.len())
+            };
             for j in i..end {
-                let f = &self.frames[j];
-                if distance_point_shape(f.to_local(center), &self.objects[j].shape) < radius {
+                if f(j) {
                     return true;
                 }
             }
         }
         false
+    }
+
+    #[inline]
+    fn penetrates(&self, j: usize, center: [f64; 3], radius: f64) -> bool {
+        let f = &self.frames[j];
+        if center[0] + radius < f.lo[0]
+            || center[0] - radius > f.hi[0]
+            || center[1] + radius < f.lo[1]
+            || center[1] - radius > f.hi[1]
+            || center[2] + radius < f.lo[2]
+            || center[2] - radius > f.hi[2]
+        {
+            return false;
+        }
+        distance_point_shape(f.to_local(center), &self.objects[j].shape) < radius
     }
 }
 

@@ -2,3 +2,10 @@
 
 mod collision;
 mod fk;
+mod moveit;
+mod planning;
+
+/// The repository's `tests/fixtures` folder.
+pub fn fixtures() -> std::path::PathBuf {
+    std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures")
+}

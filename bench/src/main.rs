@@ -1,0 +1,32 @@
+//! `ember-bench`: system benchmarks. Each ends with a machine-readable `RESULT <name> ...` line.
+//!
+//! - `collision`: FK and full configuration checks for Fetch in a shelf scene;
+//! - `plan --problems DIR...`: the uniform planner over MoveIt-style problem folders.
+
+mod collision;
+mod plan;
+mod stats;
+
+use clap::{Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(name = "ember-bench", about = "Ember's system benchmarks")]
+struct Cli {
+    #[command(subcommand)]
+    bench: Bench,
+}
+
+#[derive(Subcommand)]
+enum Bench {
+    /// FK time per configuration and full collision check time (Fetch, shelf scene).
+    Collision(collision::Args),
+    /// Plan every problem of each folder with the uniform planner.
+    Plan(plan::Args),
+}
+
+fn main() -> anyhow::Result<()> {
+    match Cli::parse().bench {
+        Bench::Collision(a) => collision::run(a),
+        Bench::Plan(a) => plan::run(a),
+    }
+}

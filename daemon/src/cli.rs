@@ -1,0 +1,82 @@
+//! Command-line definitions. One subcommand per file under `command/`.
+
+use clap::{Args, Parser, Subcommand};
+use std::path::PathBuf;
+
+/// Ember: a sensing-to-plan service for robot manipulators.
+#[derive(Debug, Parser)]
+#[command(name = "ember", version, about)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Plan once for a scene and a request (MoveIt YAML or Ember's scene file) and print the result.
+    Plan(PlanArgs),
+    /// Generate the paper's problem sets as MoveIt-style YAML folders.
+    Problems(ProblemsArgs),
+    /// Run pick episodes in varied shelf scenes and print a summary.
+    Demo(DemoArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct PlanArgs {
+    /// Scene file: MoveIt PlanningScene YAML or Ember scene YAML.
+    #[arg(long)]
+    pub scene: PathBuf,
+    /// MoveIt MotionPlanRequest YAML.
+    #[arg(long)]
+    pub request: PathBuf,
+    /// Built-in robot name (fetch, panda) or a robot file (.toml).
+    #[arg(long, default_value = "fetch")]
+    pub robot: String,
+    /// Seed of the planner.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Time limit in seconds (default: the request's allowed_planning_time, else 10).
+    #[arg(long)]
+    pub time_limit: Option<f64>,
+    /// Keep the raw path (no shortcutting).
+    #[arg(long)]
+    pub no_simplify: bool,
+    /// Print the result as one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Debug, Args)]
+pub struct ProblemsArgs {
+    /// Dataset: shelf_zero, shelf_height, shelf_height_rot, shelf_tall, table_pick, box.
+    #[arg(long)]
+    pub dataset: Vec<String>,
+    /// Training problems per dataset (written to OUT/<dataset>).
+    #[arg(long, default_value_t = 500)]
+    pub train: usize,
+    /// Test problems per dataset (written to OUT/<dataset>_test).
+    #[arg(long, default_value_t = 100)]
+    pub test: usize,
+    /// Output folder.
+    #[arg(long, default_value = "problems")]
+    pub out: PathBuf,
+    /// Seed (the test set uses seed + 1000).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Built-in robot name or robot file.
+    #[arg(long, default_value = "fetch")]
+    pub robot: String,
+}
+
+#[derive(Debug, Args)]
+pub struct DemoArgs {
+    /// Pick episodes to run.
+    #[arg(long, default_value_t = 20)]
+    pub episodes: usize,
+    /// Built-in robot name or robot file.
+    #[arg(long, default_value = "fetch")]
+    pub robot: String,
+    /// Seed of scene variation and planning.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+}

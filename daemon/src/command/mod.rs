@@ -1,0 +1,23 @@
+//! One file per subcommand.
+
+mod demo;
+mod plan;
+mod problems;
+
+use crate::cli::{Cli, Command};
+use std::process::ExitCode;
+
+/// Runs the chosen subcommand. `Err` is bad input (exit 2); a planning failure is exit 1.
+pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
+    match cli.command {
+        Command::Plan(a) => plan::run(a),
+        Command::Problems(a) => problems::run(a),
+        Command::Demo(a) => demo::run(a),
+    }
+}
+
+/// Loads a robot by built-in name or robot-file path, with a sentence naming the input.
+pub fn load_robot(spec: &str) -> anyhow::Result<ember_engine::robot::Robot> {
+    ember_engine::robot::Robot::from_spec(spec)
+        .map_err(|e| anyhow::anyhow!("cannot load robot '{spec}': {e}"))
+}

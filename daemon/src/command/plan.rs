@@ -1,0 +1,88 @@
+//! `ember plan`: one plan for a scene file and a request file.
+
+use crate::cli::PlanArgs;
+use ember_engine::planning::{self, PlanRequest, PlannerParams, UniformSampler};
+use ember_engine::scene::{moveit, Scene};
+use std::process::ExitCode;
+use std::time::{Duration, Instant};
+
+pub fn run(args: PlanArgs) -> anyhow::Result<ExitCode> {
+    let robot = super::load_robot(&args.robot)?;
+    let scene = Scene::load(&args.scene)?;
+    let text = std::fs::read_to_string(&args.request)
+        .map_err(|e| anyhow::anyhow!("cannot read {}: {e}", args.request.display()))?;
+    let request = moveit::request_from_yaml(&text, &args.request.display().to_string(), &robot)?;
+    let env = scene
+        .environment()
+        .map_err(|e| anyhow::anyhow!("{}: {e}", args.scene.display()))?;
+    let time_limit = args
+        .time_limit
+        .or(request.allowed_planning_time)
+        .unwrap_or(10.0);
+    let req = PlanRequest {
+        start: request.start,
+        goal: request.goal,
+        params: PlannerParams {
+            seed: args.seed,
+            time_limit: Duration::from_secs_f64(time_limit.max(0.0)),
+            simplify: !args.no_simplify,
+            ..Default::default()
+        },
+    };
+    let t = Instant::now();
+    let outcome = planning::plan(&robot, &env, &req, &mut UniformSampler);
+    let total_ms = t.elapsed().as_secs_f64() * 1e3;
+    match outcome {
+        Ok(res) => {
+            let s = &res.stats;
+            if args.json {
+                let v = serde_json::json!({
+                    "status": "solved",
+                    "path": res.path,
+                    "total_ms": total_ms,
+                    "stats": {
+                        "iterations": s.iterations, "tree_nodes": s.tree_nodes,
+                        "config_checks": s.config_checks, "motion_checks": s.motion_checks,
+                        "ik_ms": s.ik_s * 1e3, "search_ms": s.search_s * 1e3,
+                        "sample_ms": s.sample_s * 1e3, "check_ms": s.check_s * 1e3,
+                        "other_ms": s.other_s() * 1e3, "simplify_ms": s.simplify_s * 1e3,
+                        "length_before": s.length_before, "length_after": s.length_after,
+                    }
+                });
+                println!("{v}");
+            } else {
+                println!("status: solved ({} waypoints)", res.path.len());
+                println!(
+                    "time: {total_ms:.3} ms total = ik {:.3} + search {:.3} (sampling {:.3}, checking {:.3}, other {:.3}) + simplify {:.3}",
+                    s.ik_s * 1e3, s.search_s * 1e3, s.sample_s * 1e3, s.check_s * 1e3, s.other_s() * 1e3, s.simplify_s * 1e3
+                );
+                println!(
+                    "search: {} iterations, {} tree nodes, {} configuration checks, {} edge checks",
+                    s.iterations, s.tree_nodes, s.config_checks, s.motion_checks
+                );
+                println!(
+                    "length: {:.3} before simplification, {:.3} after",
+                    s.length_before, s.length_after
+                );
+                let names: Vec<&str> = robot.variables().iter().map(|v| v.name.as_str()).collect();
+                println!("joints: {}", names.join(" "));
+                for (i, q) in res.path.iter().enumerate() {
+                    let vals: Vec<String> = q.iter().map(|v| format!("{v:.5}")).collect();
+                    println!("{i:4}: {}", vals.join(" "));
+                }
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+        Err(e) => {
+            if args.json {
+                println!(
+                    "{}",
+                    serde_json::json!({"status": e.kind(), "message": e.to_string(), "total_ms": total_ms})
+                );
+            } else {
+                println!("status: {} ({e})", e.kind());
+            }
+            Ok(ExitCode::from(1))
+        }
+    }
+}

@@ -1,0 +1,58 @@
+//! `ember problems`: generate problem sets as MoveIt-style YAML folders.
+
+use crate::cli::ProblemsArgs;
+use ember_engine::problems::{self, GenerateOptions};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::process::ExitCode;
+
+pub fn run(args: ProblemsArgs) -> anyhow::Result<ExitCode> {
+    let robot = super::load_robot(&args.robot)?;
+    let names = if args.dataset.is_empty() {
+        vec![
+            "shelf_zero".to_string(),
+            "shelf_height".into(),
+            "shelf_height_rot".into(),
+        ]
+    } else {
+        args.dataset.clone()
+    };
+    for name in &names {
+        let spec = problems::dataset(name)
+            .ok_or_else(|| problems::ProblemError::UnknownDataset(name.clone()))?;
+        for (suffix, count, seed) in [
+            ("", args.train, args.seed),
+            ("_test", args.test, args.seed + 1000),
+        ] {
+            if count == 0 {
+                continue;
+            }
+            let dir = args.out.join(format!("{name}{suffix}"));
+            let bar = ProgressBar::new(count as u64).with_style(
+                ProgressStyle::with_template(
+                    "{msg:24} [{bar:30}] {pos}/{len} ({elapsed}, eta {eta})",
+                )
+                .expect("valid template"),
+            );
+            bar.set_message(format!("{name}{suffix}"));
+            let options = GenerateOptions {
+                count,
+                seed,
+                ..Default::default()
+            };
+            let report = problems::generate(&robot, &spec, &options, &dir, &mut |done, _| {
+                bar.set_position(done as u64)
+            })?;
+            bar.finish();
+            println!(
+                "{}: {} problems from {} candidates ({} without IK solution, {} unsolved) in {}",
+                dir.display(),
+                report.written,
+                report.attempts,
+                report.no_ik,
+                report.unsolved,
+                dir.display()
+            );
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,286 @@
+//! Motion planning: requests, outcomes, and the planner pipeline.
+//!
+//! - [`sampler`]: the `Sampler` plug-in point and uniform sampling;
+//! - [`rrt_connect`]: bidirectional RRT over the planning group;
+//! - [`simplify`]: shortcutting and redundant-vertex removal;
+//! - [`ik`]: damped-least-squares inverse kinematics with restarts, collision-aware.
+//!
+//! [`plan`] runs the whole pipeline: validate start and goal, solve IK for pose goals, search,
+//! simplify, re-validate.
+
+pub mod ik;
+pub mod rrt_connect;
+pub mod sampler;
+pub mod simplify;
+
+pub use ik::IkParams;
+pub use sampler::{PlannerRng, Sampler, UniformSampler};
+
+use crate::collision::checker::{Contact, DEFAULT_RESOLUTION};
+use crate::collision::SphereChecker;
+use crate::robot::{ConfigError, Robot};
+use crate::world::Environment;
+use crate::Pose;
+use rand::SeedableRng;
+use std::time::{Duration, Instant};
+use thiserror::Error;
+
+/// An end-effector pose goal.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PoseGoal {
+    /// Link that must reach the pose; `None` means the robot's tip link.
+    pub link: Option<String>,
+    /// Target pose of the link, robot base frame.
+    pub pose: Pose,
+    /// Allowed position error, metres.
+    pub position_tolerance: f64,
+    /// Allowed rotation error, radians (infinite: position only).
+    pub orientation_tolerance: f64,
+}
+
+/// What the plan must reach.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Goal {
+    /// Any one of these configurations.
+    Joints(Vec<Vec<f64>>),
+    /// A pose of a link, solved by inverse kinematics.
+    Pose(PoseGoal),
+}
+
+/// Planner settings.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlannerParams {
+    /// Longest tree extension, configuration-space distance.
+    pub range: f64,
+    /// Edge-check resolution, configuration-space distance.
+    pub resolution: f64,
+    /// Wall-clock limit for the search.
+    pub time_limit: Duration,
+    /// Iteration limit for the search.
+    pub max_iterations: u64,
+    /// Seed of every random choice: same inputs and seed, same path.
+    pub seed: u64,
+    /// Shortcut and prune the path after the search.
+    pub simplify: bool,
+    /// Inverse kinematics settings for pose goals.
+    pub ik: IkParams,
+}
+
+impl Default for PlannerParams {
+    fn default() -> Self {
+        PlannerParams {
+            range: 1.5,
+            resolution: DEFAULT_RESOLUTION,
+            time_limit: Duration::from_secs(10),
+            max_iterations: 5_000_000,
+            seed: 0,
+            simplify: true,
+            ik: IkParams::default(),
+        }
+    }
+}
+
+/// A planning request.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlanRequest {
+    /// Start configuration (group order).
+    pub start: Vec<f64>,
+    /// Goal.
+    pub goal: Goal,
+    /// Settings.
+    pub params: PlannerParams,
+}
+
+/// Why no plan was returned. Each case is distinct so callers can react (and the wire maps each
+/// to its own status code).
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum PlanError {
+    /// The start configuration is malformed or outside the limits.
+    #[error("invalid start: {0}")]
+    InvalidStart(ConfigError),
+    /// The start configuration collides.
+    #[error("start is in collision: {0}")]
+    StartInCollision(Contact),
+    /// A goal configuration is malformed or outside the limits.
+    #[error("invalid goal: {0}")]
+    InvalidGoal(ConfigError),
+    /// Every goal configuration collides.
+    #[error("goal is in collision: {0}")]
+    GoalInCollision(Contact),
+    /// The goal names a link the robot does not have.
+    #[error("goal link '{0}' is not a link of the robot")]
+    UnknownLink(String),
+    /// Inverse kinematics found no collision-free configuration for the pose goal.
+    #[error("pose goal unreachable: no collision-free IK solution within {attempts} attempts")]
+    UnreachablePose {
+        /// Restarts tried.
+        attempts: usize,
+    },
+    /// The search ran out of time or iterations.
+    #[error("no path found within {iterations} iterations and {elapsed_ms:.1} ms")]
+    Timeout {
+        /// Iterations run.
+        iterations: u64,
+        /// Time spent, milliseconds.
+        elapsed_ms: f64,
+    },
+}
+
+impl PlanError {
+    /// A stable snake_case name for the outcome (command-line output and logs).
+    pub fn kind(&self) -> &'static str {
+        match self {
+            PlanError::InvalidStart(_) => "invalid_start",
+            PlanError::StartInCollision(_) => "start_in_collision",
+            PlanError::InvalidGoal(_) => "invalid_goal",
+            PlanError::GoalInCollision(_) => "goal_in_collision",
+            PlanError::UnknownLink(_) => "unknown_link",
+            PlanError::UnreachablePose { .. } => "unreachable_pose",
+            PlanError::Timeout { .. } => "timeout",
+        }
+    }
+}
+
+/// Counters and timings of one plan.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct PlanStats {
+    /// Search iterations.
+    pub iterations: u64,
+    /// Nodes in both trees at the end.
+    pub tree_nodes: u64,
+    /// Configurations checked (including edge states).
+    pub config_checks: u64,
+    /// Edges checked.
+    pub motion_checks: u64,
+    /// Time drawing samples, seconds.
+    pub sample_s: f64,
+    /// Time checking collisions during the search, seconds.
+    pub check_s: f64,
+    /// Whole search time, seconds (sampling + checking + the rest).
+    pub search_s: f64,
+    /// Inverse kinematics time, seconds.
+    pub ik_s: f64,
+    /// Simplification time, seconds.
+    pub simplify_s: f64,
+    /// Path length before simplification.
+    pub length_before: f64,
+    /// Path length after simplification.
+    pub length_after: f64,
+}
+
+impl PlanStats {
+    /// Search time spent neither sampling nor checking, seconds.
+    pub fn other_s(&self) -> f64 {
+        (self.search_s - self.sample_s - self.check_s).max(0.0)
+    }
+}
+
+/// A solved plan.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlanResult {
+    /// Waypoints from start to goal, group order; consecutive waypoints are joined by straight
+    /// (shortest-way for continuous joints) motions checked at `params.resolution`.
+    pub path: Vec<Vec<f64>>,
+    /// Counters and timings.
+    pub stats: PlanStats,
+}
+
+/// Length of a path in configuration space.
+pub fn path_length(robot: &Robot, path: &[Vec<f64>]) -> f64 {
+    path.windows(2).map(|w| robot.distance(&w[0], &w[1])).sum()
+}
+
+/// Plans from the request's start to its goal in `env`, drawing samples from `sampler`.
+///
+/// ```
+/// use ember_engine::planning::{plan, Goal, PlanRequest, PlannerParams, UniformSampler};
+/// use ember_engine::{robot::Robot, world::Environment};
+/// let fetch = Robot::builtin("fetch").unwrap();
+/// let start = fetch.named_state("stow").unwrap().to_vec();
+/// let goal = vec![0.2, 0.5, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0];
+/// let req = PlanRequest { start, goal: Goal::Joints(vec![goal.clone()]), params: PlannerParams::default() };
+/// let res = plan(&fetch, &Environment::new(), &req, &mut UniformSampler).unwrap();
+/// assert_eq!(res.path.last().unwrap(), &goal);
+/// ```
+pub fn plan(
+    robot: &Robot,
+    env: &Environment,
+    request: &PlanRequest,
+    sampler: &mut dyn Sampler,
+) -> Result<PlanResult, PlanError> {
+    let params = &request.params;
+    let mut checker = SphereChecker::new(robot, env).with_resolution(params.resolution);
+    let mut rng = PlannerRng::seed_from_u64(params.seed);
+    robot
+        .validate(&request.start)
+        .map_err(PlanError::InvalidStart)?;
+    if let Some(c) = checker.contact(&request.start) {
+        return Err(PlanError::StartInCollision(c));
+    }
+    let mut stats = PlanStats::default();
+    let goals = match &request.goal {
+        Goal::Joints(goals) => {
+            let mut free = Vec::new();
+            let mut first_contact = None;
+            for g in goals {
+                robot.validate(g).map_err(PlanError::InvalidGoal)?;
+                match checker.contact(g) {
+                    None => free.push(g.clone()),
+                    Some(c) => {
+                        first_contact.get_or_insert(c);
+                    }
+                }
+            }
+            if free.is_empty() {
+                return Err(match first_contact {
+                    Some(c) => PlanError::GoalInCollision(c),
+                    None => PlanError::InvalidGoal(ConfigError::WrongLength {
+                        expected: robot.dof(),
+                        got: 0,
+                    }),
+                });
+            }
+            free
+        }
+        Goal::Pose(pg) => {
+            let t = Instant::now();
+            let sols = ik::solve(&mut checker, pg, Some(&request.start), &params.ik, &mut rng)?;
+            stats.ik_s = t.elapsed().as_secs_f64();
+            if sols.is_empty() {
+                return Err(PlanError::UnreachablePose {
+                    attempts: params.ik.attempts,
+                });
+            }
+            sols
+        }
+    };
+    let before = checker.stats();
+    let mut path = rrt_connect::search(
+        &mut checker,
+        &request.start,
+        &goals,
+        params,
+        sampler,
+        &mut rng,
+        &mut stats,
+    )?;
+    stats.length_before = path_length(robot, &path);
+    if params.simplify {
+        let t = Instant::now();
+        simplify::simplify(&mut checker, &mut path, &mut rng);
+        stats.simplify_s = t.elapsed().as_secs_f64();
+    }
+    stats.length_after = path_length(robot, &path);
+    let after = checker.stats();
+    stats.config_checks = after.configs - before.configs;
+    stats.motion_checks = after.motions - before.motions;
+    Ok(PlanResult { path, stats })
+}
+
+/// True when every waypoint and every edge of `path` is collision free at `resolution`.
+pub fn path_is_valid(robot: &Robot, env: &Environment, path: &[Vec<f64>], resolution: f64) -> bool {
+    let mut checker = SphereChecker::new(robot, env).with_resolution(resolution);
+    path.iter()
+        .all(|q| robot.validate(q).is_ok() && checker.is_valid(q))
+        && path.windows(2).all(|w| checker.motion_valid(&w[0], &w[1]))
+}

@@ -1,0 +1,77 @@
+//! Path simplification: redundant-vertex removal and random shortcutting, then a full
+//! re-validation (the original path is kept if anything fails).
+
+use super::{path_length, PlannerRng};
+use crate::collision::SphereChecker;
+use rand::Rng;
+
+/// Shortcut attempts per path (OMPL's default budget is similar).
+const SHORTCUT_ATTEMPTS: usize = 60;
+
+/// Shortens `path` in place; endpoints are kept.
+pub fn simplify(checker: &mut SphereChecker<'_>, path: &mut Vec<Vec<f64>>, rng: &mut PlannerRng) {
+    let robot = checker.robot();
+    let original = path.clone();
+    remove_redundant(checker, path);
+    let dof = robot.dof();
+    let mut pa = vec![0.0; dof];
+    let mut pb = vec![0.0; dof];
+    for _ in 0..SHORTCUT_ATTEMPTS {
+        if path.len() < 3 {
+            break;
+        }
+        // Two random points on two different segments.
+        let segs = path.len() - 1;
+        let mut i = rng.random_range(0..segs);
+        let mut j = rng.random_range(0..segs);
+        if i == j {
+            continue;
+        }
+        if i > j {
+            std::mem::swap(&mut i, &mut j);
+        }
+        let ti: f64 = rng.random();
+        let tj: f64 = rng.random();
+        robot.interpolate(&path[i], &path[i + 1], ti, &mut pa);
+        robot.interpolate(&path[j], &path[j + 1], tj, &mut pb);
+        let old = robot.distance(&pa, &path[i + 1])
+            + path_length(robot, &path[i + 1..=j])
+            + robot.distance(&path[j], &pb);
+        if robot.distance(&pa, &pb) >= old - 1e-9 {
+            continue;
+        }
+        if !(checker.is_valid(&pa) && checker.is_valid(&pb) && checker.motion_valid(&pa, &pb)) {
+            continue;
+        }
+        let mut next = Vec::with_capacity(path.len());
+        next.extend_from_slice(&path[..=i]);
+        next.push(pa.clone());
+        next.push(pb.clone());
+        next.extend_from_slice(&path[j + 1..]);
+        *path = next;
+    }
+    remove_redundant(checker, path);
+    let valid = path.iter().all(|q| checker.is_valid(q))
+        && path.windows(2).all(|w| checker.motion_valid(&w[0], &w[1]));
+    if !valid {
+        *path = original;
+    }
+}
+
+/// Greedy pruning: from each kept vertex, jump to the farthest vertex it sees directly.
+fn remove_redundant(checker: &mut SphereChecker<'_>, path: &mut Vec<Vec<f64>>) {
+    if path.len() < 3 {
+        return;
+    }
+    let mut kept = vec![path[0].clone()];
+    let mut i = 0;
+    while i < path.len() - 1 {
+        let mut j = path.len() - 1;
+        while j > i + 1 && !checker.motion_valid(&path[i], &path[j]) {
+            j -= 1;
+        }
+        kept.push(path[j].clone());
+        i = j;
+    }
+    *path = kept;
+}

@@ -1,0 +1,331 @@
+//! Problem sets for the paper's experiments: sampling scene variations, goals by inverse
+//! kinematics, keeping only solvable problems, and MoveIt-style YAML folders that other tools
+//! read (`config.yaml`, `sceneNNNN.yaml`, `requestNNNN.yaml`, `pathNNNN.yaml`).
+
+pub mod datasets;
+
+pub use datasets::{dataset, DatasetSpec, Variation, DATASETS};
+
+use crate::collision::SphereChecker;
+use crate::planning::{self, ik, Goal, PlannerParams, PlannerRng, PoseGoal, UniformSampler};
+use crate::robot::Robot;
+use crate::scene::moveit::{self, MotionRequest};
+use crate::scene::{read_text, write_text, Scene, SceneError};
+use crate::world::Object;
+use crate::Pose;
+use nalgebra::{Translation3, UnitQuaternion, Vector3};
+use rand::{Rng, SeedableRng};
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+use thiserror::Error;
+
+/// A problem set that cannot be read or written.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum ProblemError {
+    /// A scene, request or path file is unusable.
+    #[error(transparent)]
+    File(#[from] SceneError),
+    /// The folder holds no `sceneNNNN.yaml` + `requestNNNN.yaml` pair.
+    #[error("{0}: no problems (expected sceneNNNN.yaml and requestNNNN.yaml files)")]
+    Empty(String),
+    /// The dataset name is unknown.
+    #[error("unknown dataset '{0}' (known: {known})", known = DATASETS.join(", "))]
+    UnknownDataset(String),
+    /// The robot has no named start state for this dataset.
+    #[error("robot has no named state '{0}' to start from")]
+    NoStartState(String),
+}
+
+/// One planning problem: scene, request and (when known) a solution path.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Problem {
+    /// Index in the set (the `NNNN` of the file names).
+    pub index: usize,
+    /// The scene.
+    pub scene: Scene,
+    /// The request.
+    pub request: MotionRequest,
+    /// A known solution.
+    pub path: Option<Vec<Vec<f64>>>,
+}
+
+/// A folder of problems.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProblemSet {
+    /// Folder name.
+    pub name: String,
+    /// Robot named in `config.yaml` (Ember's `robot` key), if any.
+    pub robot: Option<String>,
+    /// Problems in index order.
+    pub problems: Vec<Problem>,
+}
+
+fn index_of(file: &str, prefix: &str) -> Option<usize> {
+    file.strip_prefix(prefix)?
+        .strip_suffix(".yaml")?
+        .parse()
+        .ok()
+}
+
+impl ProblemSet {
+    /// The robot named in `dir/config.yaml`, if any.
+    pub fn robot_of(dir: &Path) -> Option<String> {
+        let text = std::fs::read_to_string(dir.join("config.yaml")).ok()?;
+        let v: serde_yaml_ng::Value = serde_yaml_ng::from_str(&text).ok()?;
+        v.get("robot")?.as_str().map(str::to_string)
+    }
+
+    /// Reads every `sceneNNNN.yaml` / `requestNNNN.yaml` (and `pathNNNN.yaml`) in `dir`.
+    pub fn load(dir: impl AsRef<Path>, robot: &Robot) -> Result<ProblemSet, ProblemError> {
+        let dir = dir.as_ref();
+        let entries = std::fs::read_dir(dir).map_err(|e| SceneError::Io {
+            path: dir.display().to_string(),
+            message: e.to_string(),
+        })?;
+        let mut indices: Vec<(usize, String)> = entries
+            .filter_map(|e| e.ok())
+            .filter_map(|e| {
+                let name = e.file_name().to_string_lossy().to_string();
+                index_of(&name, "scene").map(|i| (i, name))
+            })
+            .collect();
+        indices.sort();
+        let mut problems = Vec::new();
+        for (index, scene_file) in indices {
+            let digits = scene_file.len() - "scene".len() - ".yaml".len();
+            let request_path = dir.join(format!("request{index:0digits$}.yaml"));
+            if !request_path.exists() {
+                continue;
+            }
+            let scene = Scene::load(dir.join(&scene_file))?;
+            let request = moveit::request_from_yaml(
+                &read_text(&request_path)?,
+                &request_path.display().to_string(),
+                robot,
+            )?;
+            let path_path = dir.join(format!("path{index:0digits$}.yaml"));
+            let path = if path_path.exists() {
+                Some(moveit::path_from_yaml(
+                    &read_text(&path_path)?,
+                    &path_path.display().to_string(),
+                    robot,
+                )?)
+            } else {
+                None
+            };
+            problems.push(Problem {
+                index,
+                scene,
+                request,
+                path,
+            });
+        }
+        if problems.is_empty() {
+            return Err(ProblemError::Empty(dir.display().to_string()));
+        }
+        Ok(ProblemSet {
+            name: dir
+                .file_name()
+                .map(|n| n.to_string_lossy().to_string())
+                .unwrap_or_default(),
+            robot: Self::robot_of(dir),
+            problems,
+        })
+    }
+}
+
+/// Uniform in `[-b, b]` (0 when `b` is 0).
+fn sym(rng: &mut PlannerRng, b: f64) -> f64 {
+    if b > 0.0 {
+        rng.random_range(-b..=b)
+    } else {
+        0.0
+    }
+}
+
+fn variation_transform(rng: &mut PlannerRng, v: &Variation) -> Pose {
+    Pose::from_parts(
+        Translation3::new(
+            sym(rng, v.position[0]),
+            sym(rng, v.position[1]),
+            sym(rng, v.position[2]),
+        ),
+        UnitQuaternion::from_axis_angle(&Vector3::z_axis(), sym(rng, v.yaw)),
+    )
+}
+
+/// One random scene of the dataset.
+pub fn sample_scene(spec: &DatasetSpec, rng: &mut PlannerRng) -> Scene {
+    let world = variation_transform(rng, &spec.world);
+    let mut objects: Vec<Object> = spec
+        .objects
+        .iter()
+        .map(|(name, shape, pose)| Object {
+            name: name.clone(),
+            shape: *shape,
+            pose: if spec.fixed.contains(name) {
+                *pose
+            } else {
+                world * pose
+            },
+        })
+        .collect();
+    for (names, v) in &spec.object_variations {
+        for name in names {
+            let local = variation_transform(rng, v);
+            if let Some(o) = objects.iter_mut().find(|o| &o.name == name) {
+                o.pose *= local;
+            }
+        }
+    }
+    Scene {
+        name: spec.name.to_string(),
+        objects,
+    }
+}
+
+/// A collision-free goal configuration reaching a random target of `scene` as `spec` defines
+/// it (goal pose jittered within the dataset's tolerances), or `None` when IK finds none.
+pub fn sample_goal(
+    robot: &Robot,
+    spec: &DatasetSpec,
+    scene: &Scene,
+    env: &crate::world::Environment,
+    rng: &mut PlannerRng,
+) -> Option<Vec<f64>> {
+    let target = &spec.targets[rng.random_range(0..spec.targets.len())];
+    let target_pose = scene.objects.iter().find(|o| &o.name == target)?.pose;
+    let (pt, ot) = spec.goal_tolerance;
+    let jitter = Pose::from_parts(
+        Translation3::new(sym(rng, pt), sym(rng, pt), sym(rng, pt)),
+        UnitQuaternion::from_euler_angles(sym(rng, ot), sym(rng, ot), sym(rng, ot)),
+    );
+    let pose_goal = PoseGoal {
+        link: None,
+        pose: target_pose * spec.goal_offset * jitter,
+        position_tolerance: 0.002,
+        orientation_tolerance: 0.01,
+    };
+    let ik_params = ik::IkParams {
+        solutions: 1,
+        ..Default::default()
+    };
+    let mut checker = SphereChecker::new(robot, env);
+    ik::solve(&mut checker, &pose_goal, None, &ik_params, rng)
+        .ok()?
+        .into_iter()
+        .next()
+}
+
+/// Settings of [`generate`].
+#[derive(Debug, Clone)]
+pub struct GenerateOptions {
+    /// Problems to keep.
+    pub count: usize,
+    /// Seed of the whole set.
+    pub seed: u64,
+    /// Time allowed to solve each candidate (unsolved candidates are dropped).
+    pub solve_time: Duration,
+    /// Give up after `count * max_attempts_factor` candidates.
+    pub max_attempts_factor: usize,
+}
+
+impl Default for GenerateOptions {
+    fn default() -> Self {
+        GenerateOptions {
+            count: 100,
+            seed: 1,
+            solve_time: Duration::from_secs(5),
+            max_attempts_factor: 20,
+        }
+    }
+}
+
+/// What [`generate`] did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct GenerateReport {
+    /// Problems written.
+    pub written: usize,
+    /// Candidates sampled.
+    pub attempts: usize,
+    /// Candidates dropped for lack of a collision-free IK solution.
+    pub no_ik: usize,
+    /// Candidates dropped because the planner did not solve them in time.
+    pub unsolved: usize,
+}
+
+/// Samples problems of `spec` for `robot` until `count` solvable ones are written to `out`.
+/// `progress(written, attempts)` is called after each candidate.
+pub fn generate(
+    robot: &Robot,
+    spec: &DatasetSpec,
+    options: &GenerateOptions,
+    out: &Path,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<GenerateReport, ProblemError> {
+    let start = robot
+        .named_state(spec.start_state)
+        .ok_or_else(|| ProblemError::NoStartState(spec.start_state.to_string()))?
+        .to_vec();
+    std::fs::create_dir_all(out).map_err(|e| SceneError::Io {
+        path: out.display().to_string(),
+        message: e.to_string(),
+    })?;
+    let mut rng = PlannerRng::seed_from_u64(options.seed);
+    let mut report = GenerateReport {
+        written: 0,
+        attempts: 0,
+        no_ik: 0,
+        unsolved: 0,
+    };
+    let width = 4.max(options.count.to_string().len());
+    while report.written < options.count
+        && report.attempts < options.count * options.max_attempts_factor
+    {
+        report.attempts += 1;
+        let scene = sample_scene(spec, &mut rng);
+        let env = scene.environment().expect("generated scenes are valid");
+        let Some(goal) = sample_goal(robot, spec, &scene, &env, &mut rng) else {
+            report.no_ik += 1;
+            progress(report.written, report.attempts);
+            continue;
+        };
+        let request = planning::PlanRequest {
+            start: start.clone(),
+            goal: Goal::Joints(vec![goal.clone()]),
+            params: PlannerParams {
+                time_limit: options.solve_time,
+                seed: rng.random(),
+                ..Default::default()
+            },
+        };
+        let Ok(result) = planning::plan(robot, &env, &request, &mut UniformSampler) else {
+            report.unsolved += 1;
+            progress(report.written, report.attempts);
+            continue;
+        };
+        let i = report.written + 1;
+        let file = |kind: &str| -> PathBuf { out.join(format!("{kind}{i:0width$}.yaml")) };
+        write_text(
+            &file("scene"),
+            &moveit::scene_to_yaml(&scene, robot, &start),
+        )?;
+        write_text(
+            &file("request"),
+            &moveit::request_to_yaml(robot, &start, &goal, 60.0),
+        )?;
+        write_text(&file("path"), &moveit::path_to_yaml(robot, &result.path))?;
+        report.written += 1;
+        progress(report.written, report.attempts);
+    }
+    let config = format!(
+        "# Written by Ember's problem generator.\nrobot: {}\nplanning_group: {}\ndataset: {}\nsamples: {}\nseed: {}\n",
+        robot.name(),
+        robot.group_name(),
+        spec.name,
+        report.written,
+        options.seed
+    );
+    write_text(&out.join("config.yaml"), &config)?;
+    Ok(report)
+}

@@ -1,0 +1,94 @@
+//! Scenes: named objects posed in the robot base frame, and their file formats.
+//!
+//! - [`file`]: Ember's own scene file (YAML);
+//! - [`moveit`]: MoveIt `PlanningScene`, `MotionPlanRequest` and `RobotTrajectory` YAML as
+//!   MotionBenchMaker writes them (import and export), so existing datasets run unchanged.
+
+pub mod file;
+pub mod moveit;
+
+use crate::world::{Environment, Object, WorldError};
+use crate::Pose;
+use nalgebra::{Quaternion, Translation3, UnitQuaternion};
+use thiserror::Error;
+
+/// A set of named objects in the robot base frame.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Scene {
+    /// Scene name.
+    pub name: String,
+    /// Objects, poses in the robot base frame.
+    pub objects: Vec<Object>,
+}
+
+impl Scene {
+    /// The environment the checker uses for this scene.
+    pub fn environment(&self) -> Result<Environment, WorldError> {
+        Environment::from_objects(self.objects.iter().cloned())
+    }
+}
+
+/// A scene or request file that cannot be used. Names the file and the field at fault.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum SceneError {
+    /// The file could not be read or written.
+    #[error("cannot access {path}: {message}")]
+    Io {
+        /// File path.
+        path: String,
+        /// The operating system's reason.
+        message: String,
+    },
+    /// The file is not valid YAML.
+    #[error("{path}: not valid YAML: {message}")]
+    Syntax {
+        /// File path.
+        path: String,
+        /// Parser message.
+        message: String,
+    },
+    /// A field is missing or has the wrong form.
+    #[error("{path}: field {field}: {message}")]
+    Field {
+        /// File path.
+        path: String,
+        /// Dotted path of the field, e.g. `world.collision_objects[2].primitives[0].dimensions`.
+        field: String,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+/// A pose from a position and a quaternion `[x, y, z, w]` (normalised; must not be zero).
+pub fn pose_from_xyz_xyzw(xyz: [f64; 3], xyzw: [f64; 4]) -> Option<Pose> {
+    let [x, y, z, w] = xyzw;
+    let n = (x * x + y * y + z * z + w * w).sqrt();
+    if !(n.is_finite() && n > 1e-9 && xyz.iter().all(|v| v.is_finite())) {
+        return None;
+    }
+    Some(Pose::from_parts(
+        Translation3::new(xyz[0], xyz[1], xyz[2]),
+        UnitQuaternion::from_quaternion(Quaternion::new(w, x, y, z)),
+    ))
+}
+
+/// Position and quaternion `[x, y, z, w]` of a pose.
+pub fn pose_to_xyz_xyzw(p: &Pose) -> ([f64; 3], [f64; 4]) {
+    let t = p.translation.vector;
+    let q = p.rotation.coords;
+    ([t.x, t.y, t.z], [q.x, q.y, q.z, q.w])
+}
+
+pub(crate) fn read_text(path: &std::path::Path) -> Result<String, SceneError> {
+    std::fs::read_to_string(path).map_err(|e| SceneError::Io {
+        path: path.display().to_string(),
+        message: e.to_string(),
+    })
+}
+
+pub(crate) fn write_text(path: &std::path::Path, text: &str) -> Result<(), SceneError> {
+    std::fs::write(path, text).map_err(|e| SceneError::Io {
+        path: path.display().to_string(),
+        message: e.to_string(),
+    })
+}

@@ -1,0 +1,189 @@
+//! The planner: validity of plans in generated scenes, determinism, and each failure's own error.
+
+use ember_engine::collision::checker::DEFAULT_RESOLUTION;
+use ember_engine::planning::{
+    self, path_is_valid, Goal, PlanError, PlanRequest, PlannerParams, PoseGoal, UniformSampler,
+};
+use ember_engine::problems::{self, GenerateOptions, ProblemSet};
+use ember_engine::robot::{ConfigError, Robot};
+use ember_engine::scene::Scene;
+use ember_engine::world::Environment;
+use ember_engine::Pose;
+use std::time::Duration;
+
+fn table_scene() -> Environment {
+    Scene::load(crate::fixtures().join("moveit/scene.yaml"))
+        .unwrap()
+        .environment()
+        .unwrap()
+}
+
+fn request(start: Vec<f64>, goal: Goal, seed: u64) -> PlanRequest {
+    PlanRequest {
+        start,
+        goal,
+        params: PlannerParams {
+            seed,
+            time_limit: Duration::from_secs(20),
+            ..Default::default()
+        },
+    }
+}
+
+#[test]
+fn plans_in_generated_scenes_are_collision_free() {
+    let robot = Robot::builtin("fetch").unwrap();
+    let dir = std::env::temp_dir().join(format!("ember-it-problems-{}", std::process::id()));
+    let spec = problems::dataset("shelf_height_rot").unwrap();
+    let options = GenerateOptions {
+        count: 4,
+        seed: 11,
+        ..Default::default()
+    };
+    let report = problems::generate(&robot, &spec, &options, &dir, &mut |_, _| {}).unwrap();
+    assert_eq!(report.written, 4);
+    let set = ProblemSet::load(&dir, &robot).unwrap();
+    assert_eq!(set.robot.as_deref(), Some("fetch"));
+    for p in &set.problems {
+        let env = p.scene.environment().unwrap();
+        // The generator's own path is valid too.
+        assert!(path_is_valid(
+            &robot,
+            &env,
+            p.path.as_ref().unwrap(),
+            DEFAULT_RESOLUTION
+        ));
+        let req = request(p.request.start.clone(), p.request.goal.clone(), 3);
+        let res = planning::plan(&robot, &env, &req, &mut UniformSampler).unwrap();
+        assert!(path_is_valid(&robot, &env, &res.path, DEFAULT_RESOLUTION));
+        let Goal::Joints(goals) = &p.request.goal else {
+            panic!()
+        };
+        assert_eq!(res.path.first().unwrap(), &p.request.start);
+        assert_eq!(res.path.last().unwrap(), &goals[0]);
+        assert!(res.stats.length_after <= res.stats.length_before + 1e-9);
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn same_seed_gives_the_same_path() {
+    let robot = Robot::builtin("fetch").unwrap();
+    let env = table_scene();
+    let start = robot.named_state("tuck").unwrap().to_vec();
+    let goal = Goal::Joints(vec![vec![0.3, 0.2, -0.6, 0.0, 0.6, 0.0, 0.0, 0.0]]);
+    let a = planning::plan(
+        &robot,
+        &env,
+        &request(start.clone(), goal.clone(), 42),
+        &mut UniformSampler,
+    )
+    .unwrap();
+    let b = planning::plan(
+        &robot,
+        &env,
+        &request(start.clone(), goal.clone(), 42),
+        &mut UniformSampler,
+    )
+    .unwrap();
+    assert_eq!(a.path, b.path);
+    assert_eq!(a.stats.iterations, b.stats.iterations);
+    let c = planning::plan(&robot, &env, &request(start, goal, 43), &mut UniformSampler).unwrap();
+    assert_ne!(
+        a.path, c.path,
+        "a different seed should explore differently"
+    );
+}
+
+#[test]
+fn pose_goal_is_reached_within_tolerance() {
+    let robot = Robot::builtin("fetch").unwrap();
+    let env = table_scene();
+    let target = Pose::translation(0.7, 0.1, 0.95);
+    let goal = Goal::Pose(PoseGoal {
+        link: None,
+        pose: target,
+        position_tolerance: 0.005,
+        orientation_tolerance: 0.02,
+    });
+    let res = planning::plan(
+        &robot,
+        &env,
+        &request(robot.named_state("tuck").unwrap().to_vec(), goal, 1),
+        &mut UniformSampler,
+    )
+    .unwrap();
+    let tip = robot.tip_pose(res.path.last().unwrap()).unwrap();
+    assert!((tip.translation.vector - target.translation.vector).norm() <= 0.005);
+    assert!(tip.rotation.angle_to(&target.rotation) <= 0.02);
+    assert!(path_is_valid(&robot, &env, &res.path, DEFAULT_RESOLUTION));
+}
+
+#[test]
+fn each_failure_has_its_own_error() {
+    let robot = Robot::builtin("fetch").unwrap();
+    let env = table_scene();
+    let tuck = robot.named_state("tuck").unwrap().to_vec();
+    let free_goal = vec![0.3, 0.2, -0.6, 0.0, 0.6, 0.0, 0.0, 0.0];
+    // Arm straight out through the table.
+    let in_table = vec![0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 0.0, 0.0];
+    let plan = |start: Vec<f64>, goal: Goal| {
+        planning::plan(&robot, &env, &request(start, goal, 0), &mut UniformSampler).unwrap_err()
+    };
+
+    let mut kinds = std::collections::BTreeSet::new();
+    let e = plan(tuck.clone(), Goal::Joints(vec![in_table.clone()]));
+    assert!(matches!(e, PlanError::GoalInCollision(_)), "{e}");
+    kinds.insert(e.kind());
+    let e = plan(in_table, Goal::Joints(vec![free_goal.clone()]));
+    assert!(matches!(e, PlanError::StartInCollision(_)), "{e}");
+    kinds.insert(e.kind());
+    let mut out_of_limits = free_goal.clone();
+    out_of_limits[4] = 2.5;
+    let e = plan(tuck.clone(), Goal::Joints(vec![out_of_limits]));
+    assert!(
+        matches!(e, PlanError::InvalidGoal(ConfigError::OutOfLimits { .. })),
+        "{e}"
+    );
+    kinds.insert(e.kind());
+    let e = plan(vec![0.1; 5], Goal::Joints(vec![free_goal.clone()]));
+    assert!(
+        matches!(e, PlanError::InvalidStart(ConfigError::WrongLength { .. })),
+        "{e}"
+    );
+    kinds.insert(e.kind());
+    let far = Goal::Pose(PoseGoal {
+        link: None,
+        pose: Pose::translation(3.0, 0.0, 1.0),
+        position_tolerance: 0.01,
+        orientation_tolerance: 0.1,
+    });
+    let e = plan(tuck, far);
+    assert!(matches!(e, PlanError::UnreachablePose { .. }), "{e}");
+    kinds.insert(e.kind());
+    assert_eq!(
+        kinds.len(),
+        5,
+        "each failure reports its own kind: {kinds:?}"
+    );
+}
+
+#[test]
+fn iteration_limit_gives_a_timeout() {
+    let robot = Robot::builtin("fetch").unwrap();
+    let env = table_scene();
+    // Under the table: no straight way from the tucked arm.
+    let under = vec![0.0, 0.0, 0.9, 0.0, -0.9, 0.0, 0.0, 0.0];
+    let req = PlanRequest {
+        start: robot.named_state("tuck").unwrap().to_vec(),
+        goal: Goal::Joints(vec![under]),
+        params: PlannerParams {
+            max_iterations: 2,
+            ..Default::default()
+        },
+    };
+    match planning::plan(&robot, &env, &req, &mut UniformSampler) {
+        Err(PlanError::Timeout { iterations, .. }) => assert_eq!(iterations, 2),
+        other => panic!("expected a timeout, got {other:?}"),
+    }
+}
