@@ -1,7 +1,7 @@
 //! `plan --problems DIR...`: the uniform planner over MoveIt-style problem folders.
 //!
 //! Flags: `--robot` (default: the folder's `config.yaml`, else fetch), `--time-limit S` per
-//! problem (default 10), `--seed N`, `--no-simplify`. For each folder prints success and
+//! problem (default 10), `--seed N`, `--no-simplify`, `--range R`. For each folder prints success and
 //! planning-time statistics (planning = IK + search; simplification reported apart) and ends
 //! with `RESULT plan set=<folder> n=<problems> solved=<count> median_ms=<f> mean_ms=<f>
 //! p95_ms=<f>`; a failure counts as the time limit in the mean, as in the paper.
@@ -30,6 +30,9 @@ pub struct Args {
     /// Skip path simplification.
     #[arg(long)]
     no_simplify: bool,
+    /// RRT-Connect range (longest extension); default: the planner's.
+    #[arg(long)]
+    range: Option<f64>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -58,6 +61,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     seed: args.seed + p.index as u64,
                     time_limit: Duration::from_secs_f64(args.time_limit),
                     simplify: !args.no_simplify,
+                    range: args.range.unwrap_or(PlannerParams::default().range),
                     ..Default::default()
                 },
             };

@@ -1,0 +1,117 @@
+//! `ember plan` on MoveIt YAML files, good and bad.
+
+use crate::{ember, fixtures};
+
+fn fixture(name: &str) -> String {
+    fixtures().join("moveit").join(name).display().to_string()
+}
+
+#[test]
+fn plan_prints_a_solved_path() {
+    let out = ember(&[
+        "plan",
+        "--scene",
+        &fixture("scene.yaml"),
+        "--request",
+        &fixture("request_joint.yaml"),
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["status"], "solved");
+    let path = v["path"].as_array().unwrap();
+    assert_eq!(path.last().unwrap().as_array().unwrap().len(), 8);
+    assert_eq!(path[0][0].as_f64(), Some(0.1));
+}
+
+#[test]
+fn pose_request_is_planned() {
+    let out = ember(&[
+        "plan",
+        "--scene",
+        &fixture("scene.yaml"),
+        "--request",
+        &fixture("request_pose.yaml"),
+    ]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && text.starts_with("status: solved"),
+        "{text}"
+    );
+}
+
+#[test]
+fn missing_file_is_named() {
+    let out = ember(&[
+        "plan",
+        "--scene",
+        "/nonexistent/scene.yaml",
+        "--request",
+        &fixture("request_joint.yaml"),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("/nonexistent/scene.yaml"), "{err}");
+}
+
+#[test]
+fn bad_field_is_named() {
+    let dir = std::env::temp_dir().join(format!("ember-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let bad = dir.join("bad_request.yaml");
+    let text = std::fs::read_to_string(fixture("request_joint.yaml"))
+        .unwrap()
+        .replace("position: 0.3,", "position: high,");
+    std::fs::write(&bad, text).unwrap();
+    let out = ember(&[
+        "plan",
+        "--scene",
+        &fixture("scene.yaml"),
+        "--request",
+        bad.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("bad_request.yaml")
+            && err.contains("goal_constraints[0].joint_constraints[0].position"),
+        "{err}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn planning_failure_has_its_status_and_exit_code() {
+    let dir = std::env::temp_dir().join(format!("ember-cli-fail-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let req = dir.join("request.yaml");
+    // Goal with the arm straight through the table.
+    let mut text = std::fs::read_to_string(fixture("request_joint.yaml")).unwrap();
+    for (j, v) in [
+        ("torso_lift_joint", "0.0"),
+        ("shoulder_pan_joint", "0.0"),
+        ("shoulder_lift_joint", "0.1"),
+        ("elbow_flex_joint", "0.0"),
+    ] {
+        let start = text.find(&format!("joint_name: {j}, position: ")).unwrap()
+            + format!("joint_name: {j}, position: ").len();
+        let end = start + text[start..].find(',').unwrap();
+        text.replace_range(start..end, v);
+    }
+    std::fs::write(&req, text).unwrap();
+    let out = ember(&[
+        "plan",
+        "--scene",
+        &fixture("scene.yaml"),
+        "--request",
+        req.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(1));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.starts_with("status: goal_in_collision"), "{stdout}");
+    std::fs::remove_dir_all(&dir).ok();
+}
