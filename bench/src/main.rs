@@ -1,9 +1,11 @@
 //! `ember-bench`: system benchmarks. Each ends with a machine-readable `RESULT <name> ...` line.
 //!
 //! - `collision`: FK and full configuration checks for Fetch in a shelf scene;
-//! - `plan --problems DIR...`: the uniform planner over MoveIt-style problem folders.
+//! - `plan --problems DIR...`: the uniform planner over MoveIt-style problem folders;
+//! - `map`: our occupancy map against OctoMap on the same simulated frames.
 
 mod collision;
+mod map;
 mod plan;
 mod stats;
 
@@ -22,11 +24,14 @@ enum Bench {
     Collision(collision::Args),
     /// Plan every problem of each folder with the uniform planner.
     Plan(plan::Args),
+    /// Occupancy map insertion against OctoMap (Python peer) on the same frames.
+    Map(map::Args),
 }
 
 fn main() -> anyhow::Result<()> {
     match Cli::parse().bench {
         Bench::Collision(a) => collision::run(a),
         Bench::Plan(a) => plan::run(a),
+        Bench::Map(a) => map::run(a),
     }
 }

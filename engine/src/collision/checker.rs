@@ -212,7 +212,7 @@ impl<'a> SphereChecker<'a> {
                     if let Some(o) = self.env.sphere_contact(self.centers[s], model.radius[s]) {
                         return Some(Contact::Object {
                             link: names[li].name.clone(),
-                            object: self.env.objects()[o].name.clone(),
+                            object: o.to_string(),
                         });
                     }
                 }
@@ -315,29 +315,35 @@ impl<'a> SphereChecker<'a> {
 
     fn env_contact_any(&mut self) -> bool {
         let model = self.robot.spheres();
+        let env = self.env;
         for k in 0..self.moving_links.len() {
             let li = self.moving_links[k];
             let Some((_, bound_r)) = model.bounds[li] else {
                 continue;
             };
-            let mask = self.env.sphere_candidates(self.bounds[li], bound_r);
-            if mask == 0 {
+            let mask = env.sphere_candidates(self.bounds[li], bound_r);
+            let map = env.sphere_hits_map(self.bounds[li], bound_r);
+            if mask == 0 && !map {
                 continue;
             }
             self.place_clusters(li);
             for ci in model.link_clusters[li].clone() {
                 let cluster = &model.clusters[ci];
-                let cmask =
-                    self.env
-                        .candidates_masked(self.cluster_centers[ci], cluster.radius, mask);
-                if cmask == 0 {
+                let c = self.cluster_centers[ci];
+                let cmask = if mask == 0 {
+                    0
+                } else {
+                    env.candidates_masked(c, cluster.radius, mask)
+                };
+                let cmap = map && env.sphere_hits_map(c, cluster.radius);
+                if cmask == 0 && !cmap {
                     continue;
                 }
                 self.place_spheres(ci, li);
                 for s in cluster.range.clone() {
-                    if self
-                        .env
-                        .sphere_collides_masked(self.centers[s], model.radius[s], cmask)
+                    let (p, r) = (self.centers[s], model.radius[s]);
+                    if (cmask != 0 && env.sphere_collides_masked(p, r, cmask))
+                        || (cmap && env.sphere_hits_map(p, r))
                     {
                         return true;
                     }

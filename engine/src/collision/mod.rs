@@ -10,6 +10,7 @@
 pub mod checker;
 pub mod distance;
 pub mod parry;
+pub mod ray;
 pub mod shape;
 
 pub use checker::SphereChecker;

@@ -78,3 +78,22 @@ impl Robot {
         Ok(self.link_poses(q)?[self.tip])
     }
 }
+
+impl Robot {
+    /// The robot's collision primitives at configuration `q` as world objects named
+    /// `robot/<link>/<i>` (for rendering the robot into simulated sensor data).
+    pub fn collision_objects(&self, q: &[f64]) -> Result<Vec<crate::world::Object>, ConfigError> {
+        let poses = self.link_poses(q)?;
+        let mut out = Vec::new();
+        for (li, link) in self.links.iter().enumerate() {
+            for (i, ls) in link.collision.iter().enumerate() {
+                out.push(crate::world::Object {
+                    name: format!("robot/{}/{i}", link.name),
+                    shape: ls.shape,
+                    pose: poses[li] * ls.origin,
+                });
+            }
+        }
+        Ok(out)
+    }
+}

@@ -1,9 +1,11 @@
 //! The environment: named primitives posed in the robot base frame.
 
+use super::map::OccupancyMap;
 use crate::collision::distance::distance_point_shape;
 use crate::collision::Shape;
 use crate::Pose;
 use nalgebra::Matrix3;
+use std::sync::Arc;
 use thiserror::Error;
 
 /// A named object in the world.
@@ -88,6 +90,7 @@ impl ObjectFrame {
 pub struct Environment {
     objects: Vec<Object>,
     frames: Vec<ObjectFrame>,
+    map: Option<Arc<OccupancyMap>>,
 }
 
 impl Environment {
@@ -103,6 +106,16 @@ impl Environment {
             env.add(o)?;
         }
         Ok(env)
+    }
+
+    /// Sets (or clears) the occupancy map the robot must also avoid.
+    pub fn set_map(&mut self, map: Option<Arc<OccupancyMap>>) {
+        self.map = map;
+    }
+
+    /// The occupancy map, if any.
+    pub fn map(&self) -> Option<&OccupancyMap> {
+        self.map.as_deref()
     }
 
     /// The objects, in insertion order.
@@ -159,10 +172,51 @@ impl Environment {
         self.sphere_contact(center, radius).is_some()
     }
 
-    /// Index of the first object a ball at `center` with `radius` penetrates.
+    /// Distance along the ray `origin + t·dir` (unit `dir`, base frame) to the first object it
+    /// hits within `max_t`. The map is not ray cast.
+    pub fn ray_cast(&self, origin: [f64; 3], dir: [f64; 3], max_t: f64) -> Option<f64> {
+        let mut best = max_t;
+        let mut hit = false;
+        for (f, o) in self.frames.iter().zip(&self.objects) {
+            // AABB slab test first.
+            let c = [0, 1, 2].map(|a| (f.lo[a] + f.hi[a]) / 2.0);
+            let h = [0, 1, 2].map(|a| (f.hi[a] - f.lo[a]) / 2.0);
+            let rel = [origin[0] - c[0], origin[1] - c[1], origin[2] - c[2]];
+            match crate::collision::ray::ray_box(rel, dir, h) {
+                Some(t) if t < best => {}
+                _ => continue,
+            }
+            let lo = f.to_local(origin);
+            let m = &f.rot_t;
+            let ld = [0, 1, 2].map(|i| m[i][0] * dir[0] + m[i][1] * dir[1] + m[i][2] * dir[2]);
+            if let Some(t) = crate::collision::ray::ray_shape(lo, ld, &o.shape) {
+                if t < best {
+                    best = t;
+                    hit = true;
+                }
+            }
+        }
+        hit.then_some(best)
+    }
+
+    /// True when a ball overlaps an occupied voxel of the map (false without a map).
     #[inline]
-    pub fn sphere_contact(&self, center: [f64; 3], radius: f64) -> Option<usize> {
-        (0..self.objects.len()).find(|&j| self.penetrates(j, center, radius))
+    pub(crate) fn sphere_hits_map(&self, center: [f64; 3], radius: f64) -> bool {
+        self.map
+            .as_ref()
+            .is_some_and(|m| m.sphere_collides(center, radius))
+    }
+
+    /// Name of the first object a ball at `center` with `radius` penetrates (`occupancy map` for
+    /// an occupied voxel).
+    pub fn sphere_contact(&self, center: [f64; 3], radius: f64) -> Option<&str> {
+        if let Some(j) = (0..self.objects.len()).find(|&j| self.penetrates(j, center, radius)) {
+            return Some(&self.objects[j].name);
+        }
+        match &self.map {
+            Some(m) if m.sphere_collides(center, radius) => Some("occupancy map"),
+            _ => None,
+        }
     }
 
     /// Bit set of the objects a ball penetrates: bit `i` for object `i`, bit 63 for object 63

@@ -1,8 +1,10 @@
 //! What the robot plans in.
 //!
-//! - [`environment`]: named geometric objects (from scenes or motion capture), with the fast
-//!   sphere queries the checker uses.
+//! - [`environment`]: named geometric objects (from scenes or motion capture) and, optionally, an
+//!   occupancy map, with the fast sphere queries the checker uses;
+//! - [`map`]: the occupancy map built from depth clouds.
 
 pub mod environment;
+pub mod map;
 
 pub use environment::{Environment, Object, WorldError};

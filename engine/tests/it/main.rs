@@ -2,6 +2,7 @@
 
 mod collision;
 mod fk;
+mod map;
 mod moveit;
 mod planning;
 

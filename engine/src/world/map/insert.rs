@@ -1,0 +1,345 @@
+//! Inserting a point cloud by ray casting (OctoMap's `insertPointCloud` semantics).
+//!
+//! Per cloud: every endpoint voxel is hit once, and every cell a ray passes (origin cell
+//! included, end cell excluded) is passed once; a cell hit and passed in the same cloud counts as
+//! hit only. The first ray into each endpoint voxel is traced in full (3D-DDA, backwards from the
+//! end); later rays into the same voxel are traced backwards only until they have run through
+//! `STOP_AFTER` cells in a row that earlier rays already passed — rays from one origin converge,
+//! so the rest of their path is already marked. With `MapParams::discretize` only the first ray
+//! per endpoint voxel is traced (faster, a little less free space carved next to surfaces).
+//! Marks live in per-block bit masks and block indices in a dense per-cloud table, so the inner
+//! loop does no hashing.
+
+use super::{bits, BlockKey, Leaves, OccupancyMap, RobotFilter, VoxelKey};
+use crate::Pose;
+use nalgebra::Point3;
+
+/// Consecutive already-passed cells after which a repeated ray stops.
+const STOP_AFTER: u32 = 6;
+
+/// Largest dense block table built per cloud (entries); larger clouds fall back to hashing.
+const MAX_GRID: u64 = 1 << 23;
+
+/// What one insertion did.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct InsertReport {
+    /// Points given.
+    pub points: usize,
+    /// Points removed by the robot self-filter.
+    pub filtered: usize,
+    /// Points that were NaN or infinite.
+    pub invalid: usize,
+    /// Rays cast (distinct endpoint voxels).
+    pub rays: usize,
+    /// Octoboxes whose occupancy mask changed.
+    pub changed: Vec<BlockKey>,
+}
+
+/// Marks cells into per-block scratch masks, remembering which blocks were touched.
+struct Marker<'m> {
+    map: &'m mut OccupancyMap,
+    touched: Vec<u32>,
+    /// Dense table of block indices over the cloud's bounding box (`u32::MAX`: not looked up
+    /// yet), so a cell's block costs an array access instead of a hash lookup.
+    grid: Vec<u32>,
+    grid_lo: BlockKey,
+    grid_dims: [i32; 3],
+    lo: VoxelKey,
+    hi: VoxelKey,
+}
+
+impl Marker<'_> {
+    /// Marks the end voxel of a ray (a hit when `hit`); true when no ray was cast to it yet.
+    #[inline]
+    fn mark_end(&mut self, k: VoxelKey, hit: bool) -> bool {
+        if (0..3).any(|a| k[a] < self.lo[a] || k[a] > self.hi[a]) {
+            // Outside the bounds nothing is stored, but the ray may still cross stored cells.
+            return true;
+        }
+        let (b, bit) = OccupancyMap::split(k);
+        let blk = self.block(b);
+        let first = blk.scan_end & (1 << bit) == 0;
+        blk.scan_end |= 1 << bit;
+        if hit {
+            blk.scan_hit |= 1 << bit;
+        }
+        first
+    }
+
+    /// The block with key `b`, created when missing and registered as touched.
+    #[inline(always)]
+    fn block(&mut self, b: BlockKey) -> &mut super::Block {
+        let i = self.block_idx(b);
+        &mut self.map.blocks[i as usize]
+    }
+
+    /// Index of the block with key `b`, created when missing and registered as touched.
+    #[inline(always)]
+    fn block_idx(&mut self, b: BlockKey) -> u32 {
+        let r = [0, 1, 2].map(|a| b[a] - self.grid_lo[a]);
+        let inside = (0..3).all(|a| r[a] >= 0 && r[a] < self.grid_dims[a]);
+        let i = if inside {
+            let slot = ((r[0] * self.grid_dims[1] + r[1]) * self.grid_dims[2] + r[2]) as usize;
+            match self.grid[slot] {
+                u32::MAX => {
+                    let i = self.map.block_index(b);
+                    self.grid[slot] = i;
+                    i
+                }
+                i => i,
+            }
+        } else {
+            self.map.block_index(b)
+        };
+        let blk = &self.map.blocks[i as usize];
+        if blk.scan_hit | blk.scan_free | blk.scan_end == 0 {
+            self.touched.push(i);
+        }
+        i
+    }
+
+    /// Marks a passed cell; false when this cloud had passed it already.
+    #[inline]
+    fn mark_free(&mut self, k: VoxelKey) -> bool {
+        if (0..3).any(|a| k[a] < self.lo[a] || k[a] > self.hi[a]) {
+            return true;
+        }
+        let (b, bit) = OccupancyMap::split(k);
+        let blk = self.block(b);
+        let new = blk.scan_free & (1 << bit) == 0;
+        blk.scan_free |= 1 << bit;
+        new
+    }
+
+    /// Marks the cells between the origin `o` and the end `e` (metres): every cell the segment
+    /// passes except the cell of `e`, origin cell included. Traced backwards from `e`; with
+    /// `early_stop`, tracing ends at the first cell already passed by another ray of this cloud
+    /// (rays from one origin converge, so the rest of the path is already marked).
+    fn ray(&mut self, o: [f64; 3], e: [f64; 3], res: f64, early_stop: bool) {
+        let ko = self.map.key_of(o);
+        let ke = self.map.key_of(e);
+        let mut cur = ke;
+        let mut step = [0i32; 3];
+        let mut t_max = [f64::INFINITY; 3];
+        let mut t_delta = [f64::INFINITY; 3];
+        // Cells left to step along each axis; an axis that is done never steps again.
+        let mut left = [0i32; 3];
+        for a in 0..3 {
+            left[a] = (ko[a] - ke[a]).abs();
+            if left[a] > 0 {
+                step[a] = (ko[a] - ke[a]).signum();
+                let d = o[a] - e[a];
+                if d != 0.0 {
+                    let boundary = (ke[a] + (step[a] > 0) as i32) as f64 * res;
+                    t_max[a] = (boundary - e[a]) / d;
+                    t_delta[a] = res / d.abs();
+                } else {
+                    t_max[a] = 0.0;
+                }
+            }
+        }
+        let n = left[0] + left[1] + left[2];
+        let unbounded =
+            (0..3).all(|a| ko[a].min(ke[a]) >= self.lo[a] && ko[a].max(ke[a]) <= self.hi[a]);
+        let mut seen = 0;
+        let mut block_key = [i32::MIN; 3];
+        let mut block = 0u32;
+        for _ in 0..n {
+            let axis = if t_max[0] < t_max[1] {
+                if t_max[0] < t_max[2] {
+                    0
+                } else {
+                    2
+                }
+            } else if t_max[1] < t_max[2] {
+                1
+            } else {
+                2
+            };
+            cur[axis] += step[axis];
+            left[axis] -= 1;
+            t_max[axis] = if left[axis] == 0 {
+                f64::INFINITY
+            } else {
+                t_max[axis] + t_delta[axis]
+            };
+            let newly = if unbounded {
+                let b = [cur[0] >> 2, cur[1] >> 2, cur[2] >> 2];
+                if b != block_key {
+                    block = self.block_idx(b);
+                    block_key = b;
+                }
+                let bit = (((cur[0] & 3) << 4) | ((cur[1] & 3) << 2) | (cur[2] & 3)) as u32;
+                let blk = &mut self.map.blocks[block as usize];
+                let m = 1u64 << bit;
+                let new = blk.scan_free & m == 0;
+                blk.scan_free |= m;
+                new
+            } else {
+                self.mark_free(cur)
+            };
+            if newly {
+                seen = 0;
+            } else {
+                seen += 1;
+                if early_stop && seen >= STOP_AFTER {
+                    return;
+                }
+            }
+        }
+    }
+}
+
+impl OccupancyMap {
+    /// Inserts a cloud given in the sensor frame, with the sensor's pose in the base frame.
+    /// Points on the robot (per `filter`) are dropped first.
+    pub fn insert_cloud(
+        &mut self,
+        points: &[[f32; 3]],
+        sensor_pose: &Pose,
+        filter: Option<&RobotFilter>,
+    ) -> InsertReport {
+        let mut report = InsertReport {
+            points: points.len(),
+            ..Default::default()
+        };
+        let res = self.params.resolution;
+        let max_range = self.params.max_range;
+        let discretize = self.params.discretize;
+        let origin = sensor_pose.translation.vector;
+        let o = [origin.x, origin.y, origin.z];
+        let (lo, hi) = match self.params.bounds {
+            Some((lo, hi)) => (self.key_of(lo), self.key_of(hi)),
+            None => ([i32::MIN; 3], [i32::MAX; 3]),
+        };
+        // Pass 1: endpoints in the base frame (robot points dropped), and their bounding box.
+        let mut ends: Vec<([f64; 3], bool)> = Vec::with_capacity(points.len());
+        let mut lo_b = self.key_of(o).map(|v| v >> 2);
+        let mut hi_b = lo_b;
+        for p in points {
+            if !p.iter().all(|v| v.is_finite()) {
+                report.invalid += 1;
+                continue;
+            }
+            let w = sensor_pose * Point3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+            let w = [w.x, w.y, w.z];
+            if let Some(f) = filter {
+                if f.contains(w) {
+                    report.filtered += 1;
+                    continue;
+                }
+            }
+            let d = [w[0] - o[0], w[1] - o[1], w[2] - o[2]];
+            let dist = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            let end = if max_range > 0.0 && dist > max_range {
+                let s = max_range / dist;
+                ([o[0] + d[0] * s, o[1] + d[1] * s, o[2] + d[2] * s], false)
+            } else {
+                (w, true)
+            };
+            let b = self.key_of(end.0).map(|v| v >> 2);
+            for a in 0..3 {
+                lo_b[a] = lo_b[a].min(b[a]);
+                hi_b[a] = hi_b[a].max(b[a]);
+            }
+            ends.push(end);
+        }
+        let dims = [0, 1, 2].map(|a| (hi_b[a] - lo_b[a] + 1).max(1));
+        let volume = dims.iter().map(|&d| d as u64).product::<u64>();
+        let (grid, grid_dims) = if volume <= MAX_GRID {
+            (vec![u32::MAX; volume as usize], dims)
+        } else {
+            (Vec::new(), [0; 3])
+        };
+        // Pass 2: hits, then rays.
+        let mut marker = Marker {
+            map: self,
+            touched: Vec::new(),
+            grid,
+            grid_lo: lo_b,
+            grid_dims,
+            lo,
+            hi,
+        };
+        for &(end, hit) in &ends {
+            let ke = marker.map.key_of(end);
+            if marker.mark_end(ke, hit) {
+                report.rays += 1;
+                marker.ray(o, end, res, false);
+            } else if !discretize {
+                marker.ray(o, end, res, true);
+            }
+        }
+        let touched = std::mem::take(&mut marker.touched);
+        self.apply(&touched, &mut report.changed);
+        report
+    }
+
+    /// Folds the scratch masks of the touched blocks into the leaves.
+    fn apply(&mut self, touched: &[u32], changed: &mut Vec<BlockKey>) {
+        let (hit_l, miss_l, min, max, threshold) =
+            (self.hit, self.miss, self.min, self.max, self.threshold);
+        for &i in touched {
+            let blk = &mut self.blocks[i as usize];
+            let hit = blk.scan_hit;
+            let free = blk.scan_free & !hit;
+            blk.scan_hit = 0;
+            blk.scan_free = 0;
+            blk.scan_end = 0;
+            // Saturated free space stays saturated under more misses.
+            if hit == 0 {
+                if let Leaves::Uniform(v) = blk.leaves {
+                    if v <= min {
+                        continue;
+                    }
+                }
+            }
+            let known = blk.known;
+            let before = blk.occupied;
+            let leaves = blk.expand();
+            let mut occupied = before;
+            for bit in bits(hit) {
+                let base = if known & (1 << bit) != 0 {
+                    leaves[bit]
+                } else {
+                    0.0
+                };
+                let v = (base + hit_l).min(max);
+                leaves[bit] = v;
+                if v > threshold {
+                    occupied |= 1 << bit;
+                } else {
+                    occupied &= !(1 << bit);
+                }
+            }
+            for bit in bits(free) {
+                let base = if known & (1 << bit) != 0 {
+                    leaves[bit]
+                } else {
+                    0.0
+                };
+                let v = (base + miss_l).max(min);
+                leaves[bit] = v;
+                if v > threshold {
+                    occupied |= 1 << bit;
+                } else {
+                    occupied &= !(1 << bit);
+                }
+            }
+            blk.known = known | hit | free;
+            blk.occupied = occupied;
+            if blk.known == u64::MAX && hit == 0 {
+                if let Leaves::Each(a) = &blk.leaves {
+                    if a.iter().all(|v| *v == a[0]) {
+                        blk.leaves = Leaves::Uniform(a[0]);
+                    }
+                }
+            }
+            if occupied != before {
+                let key = blk.key;
+                changed.push(key);
+                self.note_mask_change(key, before, occupied);
+            }
+        }
+    }
+}

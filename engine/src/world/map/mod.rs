@@ -1,0 +1,473 @@
+//! The occupancy map: OctoMap's probabilistic semantics on a hashed grid of 4×4×4 leaf blocks.
+//!
+//! - Leaves hold log-odds; a cloud is inserted by ray casting from the sensor origin (free cells
+//!   along each ray, the end cell occupied; points beyond the maximum range only clear), each cell
+//!   updated at most once per cloud, occupied winning over free (OctoMap's `insertPointCloud`).
+//! - Defaults as OctoMap: hit 0.7, miss 0.4, clamping 0.12–0.97, occupied above 0.5.
+//! - A block is exactly FLAME's octobox: the node two levels above the leaves of a depth-16
+//!   octree on OctoMap's key lattice, with its 64-bit occupancy mask (bit `16x + 4y + z`).
+//! - Blocks exist only where something was observed; blocks whose 64 leaves are all known and
+//!   equal (saturated free space, typically) are compacted to one value.
+//!
+//! Files: `insert.rs` (ray casting), `self_filter.rs` (removing the robot's own points),
+//! `bt_file.rs` (OctoMap's binary `.bt` format).
+
+mod bt_file;
+mod insert;
+mod self_filter;
+
+pub use bt_file::BtError;
+pub use insert::InsertReport;
+pub use self_filter::RobotFilter;
+
+use rustc_hash::FxHashMap;
+
+/// Integer voxel coordinates: `floor(coordinate / resolution)` per axis.
+pub type VoxelKey = [i32; 3];
+/// Integer block coordinates: voxel key `>> 2` per axis.
+pub type BlockKey = [i32; 3];
+
+/// Map settings. Probabilities as in OctoMap.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MapParams {
+    /// Leaf edge length, metres.
+    pub resolution: f64,
+    /// Probability of a cell given a hit.
+    pub prob_hit: f64,
+    /// Probability of a cell given a miss (ray passes through).
+    pub prob_miss: f64,
+    /// Lower clamping probability.
+    pub clamp_min: f64,
+    /// Upper clamping probability.
+    pub clamp_max: f64,
+    /// Occupied above this probability.
+    pub occupancy_threshold: f64,
+    /// Rays are cut at this range (metres); points beyond only clear. Non-positive: unlimited.
+    pub max_range: f64,
+    /// Cells outside this box (base frame, metres) are never stored.
+    pub bounds: Option<([f64; 3], [f64; 3])>,
+    /// Cast one ray per endpoint voxel only (OctoMap's `discretize`): faster, slightly less
+    /// free space carved next to surfaces.
+    pub discretize: bool,
+}
+
+impl Default for MapParams {
+    fn default() -> Self {
+        MapParams {
+            resolution: 0.02,
+            prob_hit: 0.7,
+            prob_miss: 0.4,
+            clamp_min: 0.12,
+            clamp_max: 0.97,
+            occupancy_threshold: 0.5,
+            max_range: 3.0,
+            bounds: None,
+            discretize: false,
+        }
+    }
+}
+
+fn logit(p: f64) -> f32 {
+    (p / (1.0 - p)).ln() as f32
+}
+
+/// State of a cell.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Occupancy {
+    /// Never observed.
+    Unknown,
+    /// Observed, at or below the threshold.
+    Free,
+    /// Observed, above the threshold.
+    Occupied,
+}
+
+/// Leaf storage of a block.
+#[derive(Debug, Clone)]
+pub(crate) enum Leaves {
+    /// All 64 leaves known and equal.
+    Uniform(f32),
+    /// Per-leaf log-odds (meaningful where `known` is set).
+    Each(Box<[f32; 64]>),
+}
+
+/// A 4×4×4 block of leaves (an octobox).
+#[derive(Debug, Clone)]
+pub(crate) struct Block {
+    pub(crate) key: BlockKey,
+    pub(crate) leaves: Leaves,
+    /// Leaves observed at least once.
+    pub(crate) known: u64,
+    /// Leaves above the occupancy threshold.
+    pub(crate) occupied: u64,
+    /// Per-cloud scratch: leaves hit and leaves passed through in the cloud being inserted.
+    pub(crate) scan_hit: u64,
+    pub(crate) scan_free: u64,
+    /// Per-cloud scratch: leaves some ray was already cast to.
+    pub(crate) scan_end: u64,
+}
+
+impl Block {
+    fn new(key: BlockKey) -> Self {
+        Block {
+            key,
+            leaves: Leaves::Each(Box::new([0.0; 64])),
+            known: 0,
+            occupied: 0,
+            scan_hit: 0,
+            scan_free: 0,
+            scan_end: 0,
+        }
+    }
+
+    pub(crate) fn logodds(&self, bit: usize) -> f32 {
+        match &self.leaves {
+            Leaves::Uniform(v) => *v,
+            Leaves::Each(a) => a[bit],
+        }
+    }
+}
+
+/// A non-empty octobox: block key, centre (metres) and occupancy mask.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct Octobox {
+    /// Block coordinates.
+    pub key: BlockKey,
+    /// Bit `16x + 4y + z` set when leaf `(x, y, z)` of the block is occupied.
+    pub mask: u64,
+}
+
+/// The occupancy map.
+#[derive(Debug, Clone)]
+pub struct OccupancyMap {
+    params: MapParams,
+    pub(crate) hit: f32,
+    pub(crate) miss: f32,
+    pub(crate) min: f32,
+    pub(crate) max: f32,
+    pub(crate) threshold: f32,
+    pub(crate) blocks: Vec<Block>,
+    pub(crate) index: FxHashMap<BlockKey, u32>,
+    /// Per 4×4×4 group of blocks (16³ leaves): how many of its blocks hold an occupied leaf.
+    /// The broad phase of [`OccupancyMap::sphere_collides`].
+    coarse: FxHashMap<BlockKey, u32>,
+}
+
+/// Bit of leaf `(x, y, z)` (each 0..4) inside its block.
+#[inline]
+pub fn leaf_bit(x: usize, y: usize, z: usize) -> usize {
+    16 * x + 4 * y + z
+}
+
+impl OccupancyMap {
+    /// An empty map.
+    pub fn new(params: MapParams) -> Self {
+        OccupancyMap {
+            hit: logit(params.prob_hit),
+            miss: logit(params.prob_miss),
+            min: logit(params.clamp_min),
+            max: logit(params.clamp_max),
+            threshold: logit(params.occupancy_threshold),
+            params,
+            blocks: Vec::new(),
+            index: FxHashMap::default(),
+            coarse: FxHashMap::default(),
+        }
+    }
+
+    /// The settings.
+    pub fn params(&self) -> &MapParams {
+        &self.params
+    }
+
+    /// Leaf edge length, metres.
+    pub fn resolution(&self) -> f64 {
+        self.params.resolution
+    }
+
+    /// Voxel key of a point.
+    #[inline]
+    pub fn key_of(&self, p: [f64; 3]) -> VoxelKey {
+        let inv = 1.0 / self.params.resolution;
+        p.map(|v| fast_floor(v * inv))
+    }
+
+    /// Centre of a voxel, metres.
+    #[inline]
+    pub fn voxel_center(&self, k: VoxelKey) -> [f64; 3] {
+        let r = self.params.resolution;
+        k.map(|v| (v as f64 + 0.5) * r)
+    }
+
+    /// Centre of an octobox (block), metres.
+    pub fn block_center(&self, k: BlockKey) -> [f64; 3] {
+        let r = self.params.resolution;
+        k.map(|v| (4 * v + 2) as f64 * r)
+    }
+
+    /// Edge length of an octobox, metres.
+    pub fn block_size(&self) -> f64 {
+        4.0 * self.params.resolution
+    }
+
+    pub(crate) fn split(k: VoxelKey) -> (BlockKey, usize) {
+        let b = k.map(|v| v >> 2);
+        let bit = leaf_bit(
+            (k[0] & 3) as usize,
+            (k[1] & 3) as usize,
+            (k[2] & 3) as usize,
+        );
+        (b, bit)
+    }
+
+    /// State of the voxel holding `p`.
+    ///
+    /// ```
+    /// use ember_engine::world::map::{MapParams, Occupancy, OccupancyMap};
+    /// use ember_engine::Pose;
+    /// let mut map = OccupancyMap::new(MapParams::default());
+    /// map.insert_cloud(&[[1.0, 0.0, 0.0]], &Pose::identity(), None);
+    /// assert_eq!(map.occupancy([1.0, 0.0, 0.0]), Occupancy::Occupied);
+    /// assert_eq!(map.occupancy([0.5, 0.0, 0.0]), Occupancy::Free);
+    /// assert_eq!(map.occupancy([0.0, 1.0, 0.0]), Occupancy::Unknown);
+    /// ```
+    pub fn occupancy(&self, p: [f64; 3]) -> Occupancy {
+        self.voxel_occupancy(self.key_of(p))
+    }
+
+    /// State of a voxel.
+    pub fn voxel_occupancy(&self, k: VoxelKey) -> Occupancy {
+        let (b, bit) = Self::split(k);
+        match self.index.get(&b) {
+            None => Occupancy::Unknown,
+            Some(&i) => {
+                let blk = &self.blocks[i as usize];
+                if blk.known & (1 << bit) == 0 {
+                    Occupancy::Unknown
+                } else if blk.occupied & (1 << bit) != 0 {
+                    Occupancy::Occupied
+                } else {
+                    Occupancy::Free
+                }
+            }
+        }
+    }
+
+    /// Occupancy probability of a voxel, if known.
+    pub fn probability(&self, k: VoxelKey) -> Option<f64> {
+        let (b, bit) = Self::split(k);
+        let blk = &self.blocks[*self.index.get(&b)? as usize];
+        (blk.known & (1 << bit) != 0).then(|| {
+            let l = blk.logodds(bit) as f64;
+            1.0 - 1.0 / (1.0 + l.exp())
+        })
+    }
+
+    /// Every known voxel with its state.
+    pub fn known_voxels(&self) -> impl Iterator<Item = (VoxelKey, Occupancy)> + '_ {
+        self.index.iter().flat_map(move |(b, &i)| {
+            let blk = &self.blocks[i as usize];
+            let base = b.map(|v| v * 4);
+            bits(blk.known).map(move |bit| {
+                let k = [
+                    base[0] + (bit / 16) as i32,
+                    base[1] + (bit / 4 % 4) as i32,
+                    base[2] + (bit % 4) as i32,
+                ];
+                let state = if blk.occupied & (1 << bit) != 0 {
+                    Occupancy::Occupied
+                } else {
+                    Occupancy::Free
+                };
+                (k, state)
+            })
+        })
+    }
+
+    /// Centres of all occupied voxels, metres.
+    pub fn occupied_voxels(&self) -> impl Iterator<Item = [f64; 3]> + '_ {
+        self.known_voxels()
+            .filter(|(_, s)| *s == Occupancy::Occupied)
+            .map(|(k, _)| self.voxel_center(k))
+    }
+
+    /// All octoboxes with at least one occupied leaf.
+    pub fn octoboxes(&self) -> impl Iterator<Item = Octobox> + '_ {
+        self.index.iter().filter_map(move |(b, &i)| {
+            let mask = self.blocks[i as usize].occupied;
+            (mask != 0).then_some(Octobox { key: *b, mask })
+        })
+    }
+
+    /// The octobox with key `k` (mask 0 when unknown or empty).
+    pub fn octobox(&self, k: BlockKey) -> u64 {
+        self.index
+            .get(&k)
+            .map(|&i| self.blocks[i as usize].occupied)
+            .unwrap_or(0)
+    }
+
+    /// Number of stored blocks.
+    pub fn block_count(&self) -> usize {
+        self.blocks.len()
+    }
+
+    /// Approximate heap memory in bytes.
+    pub fn memory_bytes(&self) -> usize {
+        let per_block = std::mem::size_of::<Block>();
+        let leaves: usize = self
+            .blocks
+            .iter()
+            .map(|b| match b.leaves {
+                Leaves::Each(_) => 256,
+                Leaves::Uniform(_) => 0,
+            })
+            .sum();
+        self.blocks.capacity() * per_block
+            + leaves
+            + self.index.capacity() * (std::mem::size_of::<(BlockKey, u32)>() + 1)
+    }
+
+    /// True when a ball at `c` with radius `r` overlaps an occupied voxel (as a cube).
+    pub fn sphere_collides(&self, c: [f64; 3], r: f64) -> bool {
+        if self.coarse.is_empty() {
+            return false;
+        }
+        let res = self.params.resolution;
+        let lo = self.key_of([c[0] - r, c[1] - r, c[2] - r]).map(|v| v >> 2);
+        let hi = self.key_of([c[0] + r, c[1] + r, c[2] + r]).map(|v| v >> 2);
+        let half = res / 2.0;
+        for gx in (lo[0] >> 2)..=(hi[0] >> 2) {
+            for gy in (lo[1] >> 2)..=(hi[1] >> 2) {
+                for gz in (lo[2] >> 2)..=(hi[2] >> 2) {
+                    if !self.coarse.contains_key(&[gx, gy, gz]) {
+                        continue;
+                    }
+                    for bx in lo[0].max(gx * 4)..=hi[0].min(gx * 4 + 3) {
+                        for by in lo[1].max(gy * 4)..=hi[1].min(gy * 4 + 3) {
+                            for bz in lo[2].max(gz * 4)..=hi[2].min(gz * 4 + 3) {
+                                let Some(&i) = self.index.get(&[bx, by, bz]) else {
+                                    continue;
+                                };
+                                for bit in bits(self.blocks[i as usize].occupied) {
+                                    let k = [
+                                        bx * 4 + (bit / 16) as i32,
+                                        by * 4 + (bit / 4 % 4) as i32,
+                                        bz * 4 + (bit % 4) as i32,
+                                    ];
+                                    let v = self.voxel_center(k);
+                                    let d =
+                                        [0, 1, 2].map(|a| ((c[a] - v[a]).abs() - half).max(0.0));
+                                    if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] < r * r {
+                                        return true;
+                                    }
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        false
+    }
+
+    /// Keeps the coarse broad-phase counts when a block's mask goes between empty and not.
+    pub(crate) fn note_mask_change(&mut self, b: BlockKey, before: u64, after: u64) {
+        let g = b.map(|v| v >> 2);
+        match (before != 0, after != 0) {
+            (false, true) => *self.coarse.entry(g).or_insert(0) += 1,
+            (true, false) => {
+                if let Some(n) = self.coarse.get_mut(&g) {
+                    *n -= 1;
+                    if *n == 0 {
+                        self.coarse.remove(&g);
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+
+    /// Sets a voxel to `occupied` (clamped log-odds), as reading a binary map does.
+    pub fn set_voxel(&mut self, k: VoxelKey, occupied: bool) {
+        let v = if occupied { self.max } else { self.min };
+        self.set_logodds(k, v);
+    }
+
+    fn set_logodds(&mut self, k: VoxelKey, v: f32) {
+        let (b, bit) = Self::split(k);
+        let threshold = self.threshold;
+        let blk = self.block_mut(b);
+        let before = blk.occupied;
+        let leaves = blk.expand();
+        leaves[bit] = v;
+        blk.known |= 1 << bit;
+        if v > threshold {
+            blk.occupied |= 1 << bit;
+        } else {
+            blk.occupied &= !(1 << bit);
+        }
+        let after = blk.occupied;
+        self.note_mask_change(b, before, after);
+    }
+
+    pub(crate) fn block_mut(&mut self, b: BlockKey) -> &mut Block {
+        let i = self.block_index(b);
+        &mut self.blocks[i as usize]
+    }
+
+    /// Index of block `b`, created empty when missing.
+    pub(crate) fn block_index(&mut self, b: BlockKey) -> u32 {
+        match self.index.get(&b) {
+            Some(&i) => i,
+            None => {
+                let i = self.blocks.len() as u32;
+                self.blocks.push(Block::new(b));
+                self.index.insert(b, i);
+                i
+            }
+        }
+    }
+
+    /// Compacts blocks whose leaves are all known and equal.
+    pub fn compact(&mut self) {
+        for blk in &mut self.blocks {
+            if let Leaves::Each(a) = &blk.leaves {
+                if blk.known == u64::MAX && a.iter().all(|v| *v == a[0]) {
+                    blk.leaves = Leaves::Uniform(a[0]);
+                }
+            }
+        }
+    }
+}
+
+impl Block {
+    /// Per-leaf storage, expanding a uniform block.
+    pub(crate) fn expand(&mut self) -> &mut [f32; 64] {
+        if let Leaves::Uniform(v) = self.leaves {
+            self.leaves = Leaves::Each(Box::new([v; 64]));
+        }
+        match &mut self.leaves {
+            Leaves::Each(a) => a,
+            Leaves::Uniform(_) => unreachable!("expanded above"),
+        }
+    }
+}
+
+/// `floor` for values well inside the `i32` range, without a libm call.
+#[inline]
+fn fast_floor(v: f64) -> i32 {
+    let t = v as i32;
+    t - ((t as f64) > v) as i32
+}
+
+/// Indices of the set bits of `m`, ascending.
+pub(crate) fn bits(mut m: u64) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        (m != 0).then(|| {
+            let b = m.trailing_zeros() as usize;
+            m &= m - 1;
+            b
+        })
+    })
+}

@@ -1,0 +1,199 @@
+//! The occupancy map: insertion semantics, queries, octoboxes, `.bt` files, robot collision.
+
+use ember_engine::collision::SphereChecker;
+use ember_engine::robot::Robot;
+use ember_engine::world::map::{MapParams, Occupancy, OccupancyMap, RobotFilter};
+use ember_engine::world::Environment;
+use ember_engine::Pose;
+use std::sync::Arc;
+
+/// Points on the plane x = `x`, |y|, |z - zc| <= half, every 5 mm.
+fn wall(x: f32, zc: f32, half: f32) -> Vec<[f32; 3]> {
+    let n = (2.0 * half / 0.005) as i32;
+    let mut out = Vec::new();
+    for i in 0..=n {
+        for j in 0..=n {
+            out.push([x, -half + 0.005 * i as f32, zc - half + 0.005 * j as f32]);
+        }
+    }
+    out
+}
+
+#[test]
+fn wall_seen_from_the_origin_is_occupied_with_free_space_in_front() {
+    let mut sut = OccupancyMap::new(MapParams::default());
+    let report = sut.insert_cloud(&wall(1.0, 0.0, 0.2), &Pose::identity(), None);
+    assert!(report.rays > 100 && report.rays < report.points);
+    assert_eq!(sut.occupancy([1.0, 0.0, 0.0]), Occupancy::Occupied);
+    assert_eq!(sut.occupancy([1.005, 0.1, -0.1]), Occupancy::Occupied);
+    assert_eq!(sut.occupancy([0.5, 0.0, 0.0]), Occupancy::Free);
+    assert_eq!(sut.occupancy([0.9, 0.1, 0.1]), Occupancy::Free);
+    assert_eq!(
+        sut.occupancy([1.1, 0.0, 0.0]),
+        Occupancy::Unknown,
+        "behind the wall"
+    );
+    assert_eq!(
+        sut.occupancy([0.5, 0.5, 0.0]),
+        Occupancy::Unknown,
+        "outside the view"
+    );
+    // One hit: probability 0.7; many hits saturate at the clamping bound.
+    let k = sut.key_of([1.0, 0.0, 0.0]);
+    assert!((sut.probability(k).unwrap() - 0.7).abs() < 1e-6);
+    for _ in 0..10 {
+        sut.insert_cloud(&wall(1.0, 0.0, 0.2), &Pose::identity(), None);
+    }
+    assert!((sut.probability(k).unwrap() - 0.97).abs() < 1e-5);
+    let free = sut.key_of([0.5, 0.0, 0.0]);
+    assert!((sut.probability(free).unwrap() - 0.12).abs() < 1e-5);
+}
+
+#[test]
+fn points_beyond_max_range_only_clear() {
+    let mut sut = OccupancyMap::new(MapParams {
+        max_range: 0.6,
+        ..Default::default()
+    });
+    sut.insert_cloud(&wall(1.0, 0.0, 0.1), &Pose::identity(), None);
+    assert_eq!(sut.occupancy([1.0, 0.0, 0.0]), Occupancy::Unknown);
+    assert_eq!(sut.occupancy([0.3, 0.0, 0.0]), Occupancy::Free);
+    assert_eq!(sut.occupancy([0.7, 0.0, 0.0]), Occupancy::Unknown);
+    assert_eq!(sut.occupied_voxels().count(), 0);
+}
+
+#[test]
+fn bounds_limit_what_is_stored() {
+    let mut sut = OccupancyMap::new(MapParams {
+        bounds: Some(([-1.0, -1.0, -1.0], [0.5, 1.0, 1.0])),
+        ..Default::default()
+    });
+    sut.insert_cloud(&wall(1.0, 0.0, 0.1), &Pose::identity(), None);
+    assert_eq!(sut.occupancy([1.0, 0.0, 0.0]), Occupancy::Unknown);
+    assert_eq!(sut.occupancy([0.4, 0.0, 0.0]), Occupancy::Free);
+}
+
+#[test]
+fn sensor_pose_places_the_cloud() {
+    let mut sut = OccupancyMap::new(MapParams::default());
+    let pose = Pose::translation(0.0, 0.0, 1.0);
+    sut.insert_cloud(&wall(1.0, 0.0, 0.1), &pose, None);
+    assert_eq!(sut.occupancy([1.0, 0.0, 1.0]), Occupancy::Occupied);
+}
+
+#[test]
+fn octobox_masks_change_only_where_the_scene_changed() {
+    let mut sut = OccupancyMap::new(MapParams::default());
+    let first = sut.insert_cloud(&wall(1.0, 0.0, 0.3), &Pose::identity(), None);
+    assert!(!first.changed.is_empty());
+    let boxes: std::collections::HashMap<_, _> = sut.octoboxes().map(|b| (b.key, b.mask)).collect();
+    assert_eq!(boxes.len(), first.changed.len());
+    // The same view again: nothing changes.
+    let again = sut.insert_cloud(&wall(1.0, 0.0, 0.3), &Pose::identity(), None);
+    assert!(again.changed.is_empty(), "{:?}", again.changed);
+    // A small object appears in front of the wall's lower half: only blocks near it change.
+    let mut cloud = wall(1.0, 0.0, 0.3);
+    cloud.retain(|p| !(p[1].abs() < 0.05 && p[2].abs() < 0.05));
+    cloud.extend(wall(0.7, 0.0, 0.05));
+    let mut changed = Vec::new();
+    for _ in 0..3 {
+        changed.extend(sut.insert_cloud(&cloud, &Pose::identity(), None).changed);
+    }
+    assert!(!changed.is_empty());
+    let size = sut.block_size();
+    for k in &changed {
+        let c = sut.block_center(*k);
+        assert!(
+            c[0] > 0.6 - size && c[1].abs() < 0.05 + 2.0 * size && c[2].abs() < 0.05 + 2.0 * size,
+            "{c:?}"
+        );
+    }
+    // Every octobox mask bit is an occupied voxel.
+    let b = sut.octoboxes().next().unwrap();
+    let occupied = (0..64).filter(|bit| b.mask & (1 << bit) != 0).count();
+    assert_eq!(occupied as u32, b.mask.count_ones());
+}
+
+#[test]
+fn bt_file_round_trips() {
+    let mut sut = OccupancyMap::new(MapParams::default());
+    sut.insert_cloud(&wall(1.0, 0.0, 0.2), &Pose::identity(), None);
+    sut.insert_cloud(
+        &wall(0.8, 0.5, 0.1),
+        &Pose::translation(0.0, 0.0, 0.2),
+        None,
+    );
+    let mut bytes = Vec::new();
+    sut.write_bt(&mut bytes).unwrap();
+    assert!(bytes.starts_with(b"# Octomap OcTree binary file"));
+    let back = OccupancyMap::read_bt(&mut std::io::Cursor::new(&bytes)).unwrap();
+    let mut a: Vec<_> = sut.known_voxels().collect();
+    let mut b: Vec<_> = back.known_voxels().collect();
+    a.sort_by_key(|v| v.0);
+    b.sort_by_key(|v| v.0);
+    assert_eq!(a.len(), b.len());
+    assert_eq!(a, b);
+    // And written again, byte for byte the same.
+    let mut again = Vec::new();
+    back.write_bt(&mut again).unwrap();
+    assert_eq!(bytes, again);
+}
+
+#[test]
+fn bad_bt_files_are_rejected() {
+    let mut sut = OccupancyMap::new(MapParams::default());
+    sut.insert_cloud(&wall(1.0, 0.0, 0.2), &Pose::identity(), None);
+    let mut bytes = Vec::new();
+    sut.write_bt(&mut bytes).unwrap();
+    let truncated = &bytes[..bytes.len() - 10];
+    let err = OccupancyMap::read_bt(&mut std::io::Cursor::new(truncated)).unwrap_err();
+    assert!(err.to_string().contains("truncated"), "{err}");
+    let err = OccupancyMap::read_bt(&mut std::io::Cursor::new(b"hello\n".as_slice())).unwrap_err();
+    assert!(err.to_string().contains("not an OctoMap"), "{err}");
+}
+
+#[test]
+fn robot_filter_removes_points_on_the_robot() {
+    let robot = Robot::builtin("fetch").unwrap();
+    let q = robot.named_state("tuck").unwrap();
+    let sut = RobotFilter::new(&robot, q, 0.02);
+    let gripper = robot.link_poses(q).unwrap()[robot.link_index("gripper_link").unwrap()]
+        .translation
+        .vector;
+    assert!(sut.contains([gripper.x, gripper.y, gripper.z]));
+    assert!(!sut.contains([1.5, 0.0, 1.0]));
+    let mut map = OccupancyMap::new(MapParams::default());
+    let cloud = [
+        [gripper.x as f32, gripper.y as f32, gripper.z as f32],
+        [1.5, 0.0, 1.0],
+    ];
+    let report = map.insert_cloud(&cloud, &Pose::identity(), Some(&sut));
+    assert_eq!(report.filtered, 1);
+    assert_eq!(
+        map.occupancy([gripper.x, gripper.y, gripper.z]),
+        Occupancy::Unknown
+    );
+    assert_eq!(map.occupancy([1.5, 0.0, 1.0]), Occupancy::Occupied);
+}
+
+#[test]
+fn robot_collides_with_occupied_voxels() {
+    let robot = Robot::builtin("fetch").unwrap();
+    let mut map = OccupancyMap::new(MapParams::default());
+    // A wall of occupied voxels where the straight arm's gripper is.
+    map.insert_cloud(
+        &wall(1.1, 0.0, 0.15),
+        &Pose::translation(0.0, 0.0, 0.78),
+        None,
+    );
+    let mut env = Environment::new();
+    env.set_map(Some(Arc::new(map)));
+    let mut sut = SphereChecker::new(&robot, &env);
+    assert!(!sut.is_valid(&[0.0; 8]));
+    assert!(sut.is_valid(robot.named_state("tuck").unwrap()));
+    assert!(sut
+        .contact(&[0.0; 8])
+        .unwrap()
+        .to_string()
+        .contains("occupancy map"));
+}
