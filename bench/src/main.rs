@@ -2,9 +2,11 @@
 //!
 //! - `collision`: FK and full configuration checks for Fetch in a shelf scene;
 //! - `plan --problems DIR...`: the uniform planner over MoveIt-style problem folders;
-//! - `map`: our occupancy map against OctoMap on the same simulated frames.
+//! - `map`: our occupancy map against OctoMap on the same simulated frames;
+//! - `experience --train DIR --test DIR...`: the paper's experiment (uniform vs SPARK vs FLAME).
 
 mod collision;
+mod experience;
 mod map;
 mod plan;
 mod stats;
@@ -26,6 +28,8 @@ enum Bench {
     Plan(plan::Args),
     /// Occupancy map insertion against OctoMap (Python peer) on the same frames.
     Map(map::Args),
+    /// Learn SPARK and FLAME from a training set, compare them with uniform sampling on test sets.
+    Experience(experience::Args),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -33,5 +37,6 @@ fn main() -> anyhow::Result<()> {
         Bench::Collision(a) => collision::run(a),
         Bench::Plan(a) => plan::run(a),
         Bench::Map(a) => map::run(a),
+        Bench::Experience(a) => experience::run(a),
     }
 }

@@ -8,6 +8,7 @@
 #![warn(missing_docs)]
 
 pub mod collision;
+pub mod experience;
 pub mod planning;
 pub mod problems;
 pub mod robot;

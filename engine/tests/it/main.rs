@@ -1,6 +1,7 @@
 //! Engine integration tests, one binary.
 
 mod collision;
+mod experience;
 mod fk;
 mod map;
 mod moveit;

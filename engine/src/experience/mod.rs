@@ -1,0 +1,62 @@
+//! Experience: SPARK and FLAME (Chamzas et al., ICRA 2021) — sampling distributions learned from
+//! past solutions, keyed by local workspace primitives.
+//!
+//! - [`primitive`]: local primitives (SPARK box pairs, FLAME octoboxes) and their distances;
+//! - [`criticality`]: which path configurations belong to a primitive;
+//! - [`database`]: primitive → local sampler, with radius retrieval (SPARK, exact metric tree)
+//!   and exact-match retrieval (FLAME); [`vptree`] is the metric tree; [`file`] the on-disk form;
+//! - [`sampler`]: the global sampler (λ-mix of uniform and the retrieved Gaussian mixtures) that
+//!   plugs into the planner;
+//! - [`train`]: learning from solved paths.
+//!
+//! Where we differ from the authors' code (on purpose):
+//! - the orientation term of the SE(3) distance is the rotation angle `2·acos(|q₁·q₂|)` instead of
+//!   the paper's `1 − (q₁·q₂)²`, so the box distance is a true metric; the pair distance (minimum
+//!   over the two pairings of summed box distances) is then a metric too, because swapping the
+//!   boxes of a pair is an isometry of the summed metric — so the metric tree prunes exactly;
+//! - FLAME retrieval is an exact hash match of octobox position and 64-bit mask (the authors'
+//!   GNAT radius query with their distance amounts to the same match);
+//! - the global sampler picks a retrieved local sampler uniformly, then one of its components
+//!   (the paper's mixture of mixtures), where the authors' code flattens all unique means.
+
+pub mod criticality;
+pub mod database;
+pub mod file;
+pub mod primitive;
+pub mod sampler;
+pub mod train;
+pub mod vptree;
+
+pub use database::{FlameDb, SparkDb};
+pub use primitive::{BoxPrimitive, OctoboxPrimitive, SparkPair};
+pub use sampler::GlobalSampler;
+
+/// Hyperparameters (paper, Table I).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExperienceParams {
+    /// Standard deviation of every Gaussian component, per joint (radians or metres).
+    pub sigma: f64,
+    /// Probability of a uniform sample.
+    pub lambda: f64,
+    /// SPARK retrieval radius.
+    pub d_radius: f64,
+    /// SPARK: objects closer than this form a pair; criticality threshold too (metres).
+    pub d_pairs: f64,
+    /// Weight of translation against rotation in the pose distance.
+    pub w_t: f64,
+    /// Weight of pose against size in the box distance.
+    pub w_s: f64,
+}
+
+impl Default for ExperienceParams {
+    fn default() -> Self {
+        ExperienceParams {
+            sigma: 0.2,
+            lambda: 0.5,
+            d_radius: 0.4,
+            d_pairs: 0.2,
+            w_t: 0.75,
+            w_s: 0.5,
+        }
+    }
+}

@@ -1,0 +1,160 @@
+//! Local primitives and their distances.
+//!
+//! - SPARK: a pair of boxes (pose + size each; non-box objects enter as their bounding boxes)
+//!   whose objects are closer than `d_pairs`.
+//! - FLAME: an octobox of the occupancy map (4×4×4 leaves, block key + 64-bit mask).
+
+use super::ExperienceParams;
+use crate::collision::parry::shape_distance;
+use crate::collision::Shape;
+use crate::scene::Scene;
+use crate::world::map::{BlockKey, OccupancyMap};
+use crate::Pose;
+
+/// A box: pose in the base frame and full size (metres).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BoxPrimitive {
+    /// Pose of the box centre.
+    pub pose: Pose,
+    /// Full size along the box's x, y, z.
+    pub size: [f64; 3],
+}
+
+impl BoxPrimitive {
+    /// The bounding box of an object's shape, in the object's frame.
+    pub fn of(shape: &Shape, pose: &Pose) -> Self {
+        let h = shape.local_half_extents();
+        BoxPrimitive {
+            pose: *pose,
+            size: [2.0 * h[0], 2.0 * h[1], 2.0 * h[2]],
+        }
+    }
+
+    /// Box distance: `w_s·(w_T·‖Δt‖ + (1−w_T)·angle) + (1−w_s)·‖Δsize‖`, a metric.
+    pub fn distance(&self, other: &BoxPrimitive, p: &ExperienceParams) -> f64 {
+        let dt = (self.pose.translation.vector - other.pose.translation.vector).norm();
+        // Rotation angle between the orientations, 2·acos(|q₁·q₂|), in a form that stays
+        // accurate near zero: 4·atan2(‖q₁ − s·q₂‖, ‖q₁ + s·q₂‖) with s the sign of q₁·q₂.
+        let (q1, q2) = (self.pose.rotation.coords, other.pose.rotation.coords);
+        let s = if q1.dot(&q2) < 0.0 { -1.0 } else { 1.0 };
+        let angle = 4.0 * (q1 - q2 * s).norm().atan2((q1 + q2 * s).norm());
+        let ds = ((self.size[0] - other.size[0]).powi(2)
+            + (self.size[1] - other.size[1]).powi(2)
+            + (self.size[2] - other.size[2]).powi(2))
+        .sqrt();
+        p.w_s * (p.w_t * dt + (1.0 - p.w_t) * angle) + (1.0 - p.w_s) * ds
+    }
+}
+
+/// SPARK's local primitive: two nearby boxes, plus the names of the objects they came from.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SparkPair {
+    /// First box.
+    pub a: BoxPrimitive,
+    /// Second box.
+    pub b: BoxPrimitive,
+    /// Object names (not part of the distance).
+    pub names: [String; 2],
+}
+
+impl SparkPair {
+    /// Pair distance: the smaller of the two pairings' summed box distances (a metric).
+    ///
+    /// ```
+    /// use ember_engine::experience::{primitive::{BoxPrimitive, SparkPair}, ExperienceParams};
+    /// use ember_engine::Pose;
+    /// let b = |x: f64| BoxPrimitive { pose: Pose::translation(x, 0.0, 0.0), size: [0.1; 3] };
+    /// let p = SparkPair { a: b(0.0), b: b(1.0), names: ["a".into(), "b".into()] };
+    /// let swapped = SparkPair { a: b(1.0), b: b(0.0), names: ["b".into(), "a".into()] };
+    /// assert_eq!(p.distance(&swapped, &ExperienceParams::default()), 0.0);
+    /// ```
+    pub fn distance(&self, other: &SparkPair, p: &ExperienceParams) -> f64 {
+        let straight = self.a.distance(&other.a, p) + self.b.distance(&other.b, p);
+        let crossed = self.a.distance(&other.b, p) + self.b.distance(&other.a, p);
+        straight.min(crossed)
+    }
+
+    /// A key that is equal for pairs equal up to 1 cm, 0.01 in quaternion components and
+    /// ordering: the deduplication key of the database.
+    pub fn dedup_key(&self) -> Vec<i64> {
+        let q = |b: &BoxPrimitive| {
+            let t = b.pose.translation.vector;
+            let mut r = b.pose.rotation.coords;
+            if r.w < 0.0 {
+                r = -r;
+            }
+            let mut k: Vec<i64> = [t.x, t.y, t.z]
+                .iter()
+                .map(|v| (v * 100.0).round() as i64)
+                .collect();
+            k.extend(
+                [r.x, r.y, r.z, r.w]
+                    .iter()
+                    .map(|v| (v * 100.0).round() as i64),
+            );
+            k.extend(b.size.iter().map(|v| (v * 100.0).round() as i64));
+            k
+        };
+        let (ka, kb) = (q(&self.a), q(&self.b));
+        if ka <= kb {
+            [ka, kb].concat()
+        } else {
+            [kb, ka].concat()
+        }
+    }
+}
+
+/// Every pair of scene objects closer than `d_pairs` (exact distance between their bounding
+/// boxes), as SPARK primitives.
+pub fn spark_pairs(scene: &Scene, params: &ExperienceParams) -> Vec<SparkPair> {
+    let boxes: Vec<(Shape, BoxPrimitive)> = scene
+        .objects
+        .iter()
+        .map(|o| {
+            let b = BoxPrimitive::of(&o.shape, &o.pose);
+            (Shape::cuboid(b.size), b)
+        })
+        .collect();
+    let mut out = Vec::new();
+    for i in 0..boxes.len() {
+        for j in i + 1..boxes.len() {
+            let (si, bi) = &boxes[i];
+            let (sj, bj) = &boxes[j];
+            // Cheap reject before GJK.
+            let reach = si.bounding_radius() + sj.bounding_radius() + params.d_pairs;
+            if (bi.pose.translation.vector - bj.pose.translation.vector).norm() > reach {
+                continue;
+            }
+            if shape_distance(si, &bi.pose, sj, &bj.pose) < params.d_pairs {
+                out.push(SparkPair {
+                    a: *bi,
+                    b: *bj,
+                    names: [scene.objects[i].name.clone(), scene.objects[j].name.clone()],
+                });
+            }
+        }
+    }
+    out
+}
+
+/// FLAME's local primitive: an occupied octobox of the map.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct OctoboxPrimitive {
+    /// Block key on the map's lattice (position).
+    pub key: BlockKey,
+    /// Occupancy of its 4×4×4 leaves, bit `16x + 4y + z`.
+    pub mask: u64,
+}
+
+/// All non-empty octoboxes of a map.
+pub fn octoboxes(map: &OccupancyMap) -> Vec<OctoboxPrimitive> {
+    let mut v: Vec<OctoboxPrimitive> = map
+        .octoboxes()
+        .map(|o| OctoboxPrimitive {
+            key: o.key,
+            mask: o.mask,
+        })
+        .collect();
+    v.sort_by_key(|o| o.key);
+    v
+}

@@ -1,0 +1,298 @@
+//! SPARK and FLAME: metric, metric tree, database files, sampler, learning.
+
+use ember_engine::experience::database::Retrieval;
+use ember_engine::experience::file::DbError;
+use ember_engine::experience::primitive::{BoxPrimitive, OctoboxPrimitive, SparkPair};
+use ember_engine::experience::train::learn;
+use ember_engine::experience::{ExperienceParams, FlameDb, GlobalSampler, SparkDb};
+use ember_engine::planning::{PlannerRng, Sampler};
+use ember_engine::robot::Robot;
+use ember_engine::scene::pose_from_xyz_xyzw;
+use ember_engine::world::map::{MapParams, OccupancyMap};
+use ember_engine::Pose;
+use rand::{Rng, SeedableRng};
+
+fn random_box(rng: &mut PlannerRng) -> BoxPrimitive {
+    let q: [f64; 4] = [0, 1, 2, 3].map(|_| rng.random_range(-1.0..1.0));
+    let pose = pose_from_xyz_xyzw([0, 1, 2].map(|_| rng.random_range(-1.0..1.0)), q)
+        .unwrap_or(Pose::identity());
+    BoxPrimitive {
+        pose,
+        size: [0, 1, 2].map(|_| rng.random_range(0.02..0.5)),
+    }
+}
+
+fn random_pair(rng: &mut PlannerRng) -> SparkPair {
+    SparkPair {
+        a: random_box(rng),
+        b: random_box(rng),
+        names: ["a".into(), "b".into()],
+    }
+}
+
+fn configs(rng: &mut PlannerRng, n: usize) -> Vec<Vec<f64>> {
+    (0..n)
+        .map(|_| (0..8).map(|_| rng.random_range(-1.0..1.0)).collect())
+        .collect()
+}
+
+fn temp(name: &str) -> std::path::PathBuf {
+    std::env::temp_dir().join(format!("ember-it-{}-{name}", std::process::id()))
+}
+
+#[test]
+fn pair_distance_is_a_metric() {
+    let p = ExperienceParams::default();
+    let mut rng = PlannerRng::seed_from_u64(1);
+    for _ in 0..2000 {
+        let (a, b, c) = (
+            random_pair(&mut rng),
+            random_pair(&mut rng),
+            random_pair(&mut rng),
+        );
+        assert!(a.distance(&a, &p).abs() < 1e-9);
+        assert!((a.distance(&b, &p) - b.distance(&a, &p)).abs() < 1e-12);
+        assert!(a.distance(&c, &p) <= a.distance(&b, &p) + b.distance(&c, &p) + 1e-9);
+    }
+}
+
+#[test]
+fn metric_tree_returns_exactly_what_the_linear_scan_returns() {
+    let mut rng = PlannerRng::seed_from_u64(2);
+    // A small radius relative to the spread, so queries return some but not all entries.
+    let mut sut = SparkDb::new(ExperienceParams {
+        d_radius: 1.0,
+        ..Default::default()
+    });
+    for _ in 0..1500 {
+        let k = random_pair(&mut rng);
+        sut.insert(k, configs(&mut rng, 1));
+    }
+    let mut hits = 0;
+    for _ in 0..200 {
+        let q = random_pair(&mut rng);
+        let tree = sut.within(&q);
+        assert_eq!(tree, sut.within_linear(&q));
+        hits += tree.len();
+    }
+    assert!(
+        hits > 0 && hits < 200 * sut.len(),
+        "queries should be selective: {hits}"
+    );
+}
+
+#[test]
+fn equal_primitives_share_an_entry() {
+    let mut rng = PlannerRng::seed_from_u64(3);
+    let mut sut = SparkDb::new(ExperienceParams::default());
+    let k = random_pair(&mut rng);
+    let swapped = SparkPair {
+        a: k.b,
+        b: k.a,
+        names: ["b".into(), "a".into()],
+    };
+    sut.insert(k, configs(&mut rng, 2));
+    sut.insert(swapped, configs(&mut rng, 3));
+    assert_eq!(sut.len(), 1);
+    assert_eq!(sut.configurations(), 5);
+}
+
+#[test]
+fn databases_survive_save_and_load() {
+    let mut rng = PlannerRng::seed_from_u64(4);
+    let mut spark = SparkDb::new(ExperienceParams::default());
+    for _ in 0..300 {
+        let k = random_pair(&mut rng);
+        spark.insert(k, configs(&mut rng, 3));
+    }
+    let path = temp("spark.emberdb");
+    spark.save(&path).unwrap();
+    let back = SparkDb::load(&path).unwrap();
+    assert_eq!(back.len(), spark.len());
+    for ((ka, va), (kb, vb)) in spark.entries().zip(back.entries()) {
+        assert_eq!(va, vb);
+        assert_eq!(ka.names, kb.names);
+        assert!(ka.distance(kb, spark.params()) < 1e-12);
+    }
+    let q = random_pair(&mut rng);
+    assert_eq!(back.within(&q), spark.within(&q));
+
+    let mut flame = FlameDb::new(ExperienceParams::default(), 0.02);
+    for i in 0..100 {
+        flame.insert(
+            OctoboxPrimitive {
+                key: [i, -i, 3],
+                mask: rng.random(),
+            },
+            configs(&mut rng, 2),
+        );
+    }
+    let fpath = temp("flame.emberdb");
+    flame.save(&fpath).unwrap();
+    let fback = FlameDb::load(&fpath).unwrap();
+    assert_eq!(fback.len(), 100);
+    assert_eq!(fback.configurations(), 200);
+    // Loading a FLAME file as SPARK names the mismatch.
+    assert!(matches!(
+        SparkDb::load(&fpath),
+        Err(DbError::WrongKind { .. })
+    ));
+    std::fs::remove_file(&fpath).ok();
+
+    // Truncated, corrupted and foreign files are rejected with a clear error.
+    let bytes = std::fs::read(&path).unwrap();
+    std::fs::write(&path, &bytes[..bytes.len() / 2]).unwrap();
+    let e = SparkDb::load(&path).unwrap_err();
+    assert!(matches!(e, DbError::Truncated(_)), "{e}");
+    let mut corrupt = bytes.clone();
+    let mid = corrupt.len() / 2;
+    corrupt[mid] ^= 0xff;
+    std::fs::write(&path, &corrupt).unwrap();
+    let e = SparkDb::load(&path).unwrap_err();
+    assert!(
+        matches!(e, DbError::Checksum(_)) && e.to_string().contains("corrupt"),
+        "{e}"
+    );
+    std::fs::write(&path, b"PK\x03\x04 a zip file").unwrap();
+    assert!(matches!(
+        SparkDb::load(&path),
+        Err(DbError::NotADatabase(_))
+    ));
+    let mut future = bytes;
+    future[8] = 99;
+    std::fs::write(&path, &future).unwrap();
+    assert!(matches!(
+        SparkDb::load(&path),
+        Err(DbError::Version { found: 99, .. })
+    ));
+    std::fs::remove_file(&path).ok();
+}
+
+#[test]
+fn sampler_matches_its_components() {
+    let robot = Robot::builtin("fetch").unwrap();
+    let mean = vec![0.2, 0.3, 0.1, 0.0, 0.5, 0.0, -0.4, 0.0];
+    let retrieval = Retrieval::from_samplers(8, &[vec![mean.clone()]]);
+    let mut sut = GlobalSampler::new(retrieval, 0.1, 0.0);
+    let mut rng = PlannerRng::seed_from_u64(5);
+    let n = 20000;
+    let mut sum = [0.0; 8];
+    let mut sq = [0.0; 8];
+    let mut q = [0.0; 8];
+    for _ in 0..n {
+        sut.sample(&robot, &mut rng, &mut q);
+        assert!(robot.validate(&q).is_ok());
+        for j in 0..8 {
+            sum[j] += q[j];
+            sq[j] += q[j] * q[j];
+        }
+    }
+    // Joints far from their limits: mean and spread of the component.
+    for j in 1..8 {
+        let m = sum[j] / n as f64;
+        let sd = (sq[j] / n as f64 - m * m).sqrt();
+        assert!((m - mean[j]).abs() < 0.005, "joint {j} mean {m}");
+        assert!((sd - 0.1).abs() < 0.005, "joint {j} sd {sd}");
+    }
+    // The torso (0.1 from its lower limit 0) is clamped: samples pile up at the limit.
+    assert!(sum[0] / n as f64 > 0.1);
+}
+
+#[test]
+fn sampler_falls_back_to_uniform_when_nothing_is_retrieved() {
+    let robot = Robot::builtin("fetch").unwrap();
+    let mut sut = GlobalSampler::new(Retrieval::default(), 0.2, 0.5);
+    assert_eq!(sut.local_samplers(), 0);
+    let mut rng = PlannerRng::seed_from_u64(6);
+    let mut q = [0.0; 8];
+    let mut sum = 0.0;
+    let n = 20000;
+    for _ in 0..n {
+        sut.sample(&robot, &mut rng, &mut q);
+        sum += q[1];
+    }
+    // Uniform over shoulder_pan's ±1.6056 has mean 0 and covers the range.
+    assert!((sum / n as f64).abs() < 0.03);
+}
+
+#[test]
+fn lambda_mixes_uniform_and_biased_samples() {
+    let robot = Robot::builtin("fetch").unwrap();
+    let mean = vec![0.2, 0.3, 0.1, 0.0, 0.5, 0.0, -0.4, 0.0];
+    let retrieval = Retrieval::from_samplers(8, &[vec![mean.clone()]]);
+    let mut sut = GlobalSampler::new(retrieval, 0.01, 0.5);
+    let mut rng = PlannerRng::seed_from_u64(7);
+    let mut q = [0.0; 8];
+    let n = 10000;
+    let near = (0..n)
+        .filter(|_| {
+            sut.sample(&robot, &mut rng, &mut q);
+            (q[4] - 0.5).abs() < 0.05
+        })
+        .count();
+    let share = near as f64 / n as f64;
+    assert!(
+        (share - 0.5).abs() < 0.03,
+        "share of biased samples {share}"
+    );
+}
+
+#[test]
+fn learning_from_a_path_fills_both_databases() {
+    let robot = Robot::builtin("fetch").unwrap();
+    let scene =
+        ember_engine::scene::Scene::load(crate::fixtures().join("moveit/scene.yaml")).unwrap();
+    // A path ending with the hand right behind the can on the table (found by IK).
+    let env = scene.environment().unwrap();
+    let mut checker = ember_engine::collision::SphereChecker::new(&robot, &env);
+    let goal = ember_engine::planning::PoseGoal {
+        link: None,
+        pose: Pose::translation(0.66, 0.1, 0.86),
+        position_tolerance: 0.005,
+        orientation_tolerance: 0.05,
+    };
+    let mut rng = PlannerRng::seed_from_u64(8);
+    let ik =
+        ember_engine::planning::ik::solve(&mut checker, &goal, None, &Default::default(), &mut rng)
+            .unwrap();
+    let path = vec![robot.named_state("tuck").unwrap().to_vec(), ik[0].clone()];
+    let mut map = OccupancyMap::new(MapParams::default());
+    // Occupied voxels along the table top.
+    let top: Vec<[f32; 3]> = (0..40)
+        .flat_map(|i| (0..40).map(move |j| [0.7 + 0.02 * i as f32, -0.4 + 0.02 * j as f32, 0.72]))
+        .collect();
+    map.insert_cloud(&top, &Pose::identity(), None);
+    let mut spark = SparkDb::new(ExperienceParams::default());
+    let mut flame = FlameDb::new(ExperienceParams::default(), 0.02);
+    let learned = learn(
+        &robot,
+        &scene,
+        Some(&map),
+        &path,
+        Some(0.1),
+        &mut spark,
+        Some(&mut flame),
+    );
+    assert!(learned.spark_primitives >= 2, "{learned:?}");
+    assert!(
+        learned.spark_entries >= 1 && !spark.is_empty(),
+        "{learned:?}"
+    );
+    assert!(
+        learned.flame_entries >= 1 && !flame.is_empty(),
+        "{learned:?}"
+    );
+    // Everything stored is a configuration of the interpolated path, which ends at the IK goal.
+    let states = ember_engine::experience::criticality::path_states(&robot, &path, Some(0.1));
+    for (_, v) in spark.entries() {
+        assert!(v.iter().all(|q| states.contains(q)));
+    }
+    // The same scene retrieves what was learned.
+    let r = spark.retrieve(&ember_engine::experience::primitive::spark_pairs(
+        &scene,
+        spark.params(),
+    ));
+    assert_eq!(r.samplers.len(), spark.len());
+    let r = flame.retrieve(&ember_engine::experience::primitive::octoboxes(&map));
+    assert_eq!(r.samplers.len(), flame.len());
+}
