@@ -13,6 +13,8 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
+    /// Run the daemon (emberd): serve clouds, objects, joint states and plan requests over iceoryx2.
+    Run(RunArgs),
     /// Plan once for a scene and a request (MoveIt YAML or Ember's scene file) and print the result.
     Plan(PlanArgs),
     /// Generate the paper's problem sets as MoveIt-style YAML folders.
@@ -79,4 +81,17 @@ pub struct DemoArgs {
     /// Seed of scene variation and planning.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+}
+
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    /// Configuration file (TOML); overrides the embedded defaults key by key.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Instance name (services under ember/<instance>/); overrides the config.
+    #[arg(long)]
+    pub instance: Option<String>,
+    /// Experience database folder; overrides the config.
+    #[arg(long)]
+    pub db_dir: Option<PathBuf>,
 }

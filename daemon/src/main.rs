@@ -2,6 +2,9 @@
 
 mod cli;
 mod command;
+mod config;
+mod service;
+mod world;
 
 use clap::Parser;
 

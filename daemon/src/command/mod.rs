@@ -3,6 +3,7 @@
 mod demo;
 mod plan;
 mod problems;
+mod run;
 
 use crate::cli::{Cli, Command};
 use std::process::ExitCode;
@@ -10,6 +11,7 @@ use std::process::ExitCode;
 /// Runs the chosen subcommand. `Err` is bad input (exit 2); a planning failure is exit 1.
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
+        Command::Run(a) => run::run(a),
         Command::Plan(a) => plan::run(a),
         Command::Problems(a) => problems::run(a),
         Command::Demo(a) => demo::run(a),

@@ -1,5 +1,6 @@
 //! Command-line tests: the real `ember` binary, run as a user would.
 
+mod daemon;
 mod plan;
 
 use std::path::PathBuf;

@@ -104,6 +104,36 @@ impl SparkPair {
     }
 }
 
+/// The SPARK pairs that object `index` of `scene` forms with every other object: what an
+/// update of that one object changes.
+pub fn spark_pairs_of(scene: &Scene, index: usize, params: &ExperienceParams) -> Vec<SparkPair> {
+    let Some(o) = scene.objects.get(index) else {
+        return Vec::new();
+    };
+    let bi = BoxPrimitive::of(&o.shape, &o.pose);
+    let si = Shape::cuboid(bi.size);
+    let mut out = Vec::new();
+    for (j, other) in scene.objects.iter().enumerate() {
+        if j == index {
+            continue;
+        }
+        let bj = BoxPrimitive::of(&other.shape, &other.pose);
+        let sj = Shape::cuboid(bj.size);
+        let reach = si.bounding_radius() + sj.bounding_radius() + params.d_pairs;
+        if (bi.pose.translation.vector - bj.pose.translation.vector).norm() > reach {
+            continue;
+        }
+        if shape_distance(&si, &bi.pose, &sj, &bj.pose) < params.d_pairs {
+            out.push(SparkPair {
+                a: bi,
+                b: bj,
+                names: [o.name.clone(), other.name.clone()],
+            });
+        }
+    }
+    out
+}
+
 /// Every pair of scene objects closer than `d_pairs` (exact distance between their bounding
 /// boxes), as SPARK primitives.
 pub fn spark_pairs(scene: &Scene, params: &ExperienceParams) -> Vec<SparkPair> {

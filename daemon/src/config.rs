@@ -1,0 +1,123 @@
+//! emberd's configuration: TOML with embedded defaults (`config/emberd.toml`); a user file
+//! overrides any subset of keys. Unknown keys and bad values are errors naming the key.
+
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// The embedded default configuration.
+pub const DEFAULT_TOML: &str = include_str!("../../config/emberd.toml");
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Config {
+    pub instance: String,
+    pub robot: String,
+    pub map: MapConfig,
+    pub planner: PlannerConfig,
+    pub experience: ExperienceConfig,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MapConfig {
+    pub resolution: f64,
+    pub max_range: f64,
+    pub self_filter_padding: f64,
+    pub bounds_min: [f64; 3],
+    pub bounds_max: [f64; 3],
+    pub max_points: usize,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlannerConfig {
+    pub default_time_limit_s: f64,
+    pub range: f64,
+    pub simplify: bool,
+    pub use_map: bool,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExperienceConfig {
+    pub online_learning: bool,
+    pub db_dir: PathBuf,
+    pub save_every_s: f64,
+}
+
+/// Merges `over` into `base` table by table.
+fn merge(base: &mut toml::Table, over: toml::Table) {
+    for (k, v) in over {
+        match (base.get_mut(&k), v) {
+            (Some(toml::Value::Table(b)), toml::Value::Table(o)) => merge(b, o),
+            (_, v) => {
+                base.insert(k, v);
+            }
+        }
+    }
+}
+
+impl Config {
+    /// The defaults, overridden by `file` when given.
+    pub fn load(file: Option<&Path>) -> anyhow::Result<Config> {
+        let mut table: toml::Table = DEFAULT_TOML.parse().expect("embedded defaults parse");
+        if let Some(path) = file {
+            let text = std::fs::read_to_string(path)
+                .map_err(|e| anyhow::anyhow!("cannot read config {}: {e}", path.display()))?;
+            let over: toml::Table = text
+                .parse()
+                .map_err(|e| anyhow::anyhow!("config {}: {e}", path.display()))?;
+            merge(&mut table, over);
+        }
+        let name = file.map_or("<defaults>".to_string(), |p| p.display().to_string());
+        let config: Config =
+            toml::Value::Table(table)
+                .try_into()
+                .map_err(|e: toml::de::Error| {
+                    anyhow::anyhow!("config {name}: {}", e.to_string().trim())
+                })?;
+        config
+            .validate()
+            .map_err(|e| anyhow::anyhow!("config {name}: {e}"))?;
+        Ok(config)
+    }
+
+    fn validate(&self) -> Result<(), String> {
+        let positive = |key: &str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(format!("key {key} must be a positive number, got {v}"))
+            }
+        };
+        if !ember_sdk::names::valid_instance(&self.instance) {
+            return Err(format!(
+                "key instance: '{}' is not a valid instance name",
+                self.instance
+            ));
+        }
+        positive("map.resolution", self.map.resolution)?;
+        positive("map.max_range", self.map.max_range)?;
+        positive(
+            "planner.default_time_limit_s",
+            self.planner.default_time_limit_s,
+        )?;
+        positive("planner.range", self.planner.range)?;
+        positive("experience.save_every_s", self.experience.save_every_s)?;
+        if self.map.self_filter_padding.is_nan() || self.map.self_filter_padding < 0.0 {
+            return Err("key map.self_filter_padding must be >= 0".into());
+        }
+        if (0..3).any(|a| {
+            self.map.bounds_min[a].partial_cmp(&self.map.bounds_max[a])
+                != Some(std::cmp::Ordering::Less)
+        }) {
+            return Err(
+                "keys map.bounds_min / map.bounds_max: min must be below max on every axis".into(),
+            );
+        }
+        if self.map.max_points == 0 {
+            return Err("key map.max_points must be at least 1".into());
+        }
+        Ok(())
+    }
+}

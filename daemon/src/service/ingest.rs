@@ -1,0 +1,211 @@
+//! The ingest thread: clouds, objects and joint states in, world model updated incrementally,
+//! snapshots out. Never waits on planning; a bad input is counted, logged and dropped.
+
+use super::Stats;
+use crate::config::Config;
+use crate::world::{Snapshot, World};
+use ember_engine::collision::Shape;
+use ember_engine::robot::Robot;
+use ember_engine::scene::pose_from_xyz_xyzw;
+use ember_engine::world::Object;
+use ember_sdk::client::now_ns;
+use ember_sdk::services;
+use ember_sdk::wire::{self, Point, ShapeKind, PROTOCOL_VERSION};
+use iceoryx2::prelude::*;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+use tracing::warn;
+
+/// Shared handle to the latest snapshot.
+pub type SnapshotCell = Arc<Mutex<Arc<Snapshot>>>;
+
+fn object_of(u: &wire::ObjectUpdate) -> Result<Option<Object>, String> {
+    let id = wire::name_str(&u.id);
+    if id.is_empty() {
+        return Err("object update without an id".into());
+    }
+    if !u.dims.iter().chain(u.pose.iter()).all(|v| v.is_finite()) {
+        return Err(format!("object '{id}': NaN or infinite dimension or pose"));
+    }
+    let d = u.dims;
+    let shape = match u.shape {
+        s if s == ShapeKind::Remove as u32 => return Ok(None),
+        s if s == ShapeKind::Box as u32 => Shape::cuboid(d),
+        s if s == ShapeKind::Cylinder as u32 => Shape::Cylinder {
+            radius: d[0],
+            half_length: d[1] / 2.0,
+        },
+        s if s == ShapeKind::Sphere as u32 => Shape::Sphere { radius: d[0] },
+        s if s == ShapeKind::Capsule as u32 => Shape::Capsule {
+            radius: d[0],
+            half_length: d[1] / 2.0,
+        },
+        other => return Err(format!("object '{id}': unknown shape code {other}")),
+    };
+    if !shape.is_valid() {
+        return Err(format!(
+            "object '{id}': dimensions must be positive, got {d:?}"
+        ));
+    }
+    let p = u.pose;
+    let pose = pose_from_xyz_xyzw([p[0], p[1], p[2]], [p[3], p[4], p[5], p[6]])
+        .ok_or_else(|| format!("object '{id}': zero quaternion"))?;
+    Ok(Some(Object {
+        name: id,
+        shape,
+        pose,
+    }))
+}
+
+/// Runs until `stop` is set; `ready` is sent once the subscribers exist.
+pub fn run(
+    config: Config,
+    robot: Arc<Robot>,
+    snapshot: SnapshotCell,
+    stats: Arc<Stats>,
+    stop: Arc<AtomicBool>,
+    ready: std::sync::mpsc::Sender<()>,
+) -> anyhow::Result<()> {
+    let node = NodeBuilder::new()
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<ipc::Service>()
+        .map_err(|e| anyhow::anyhow!("ingest node: {e:?}"))?;
+    let instance = &config.instance;
+    let clouds = services::cloud(&node, instance)
+        .map_err(anyhow::Error::msg)?
+        .subscriber_builder()
+        .create()
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let objects = services::objects(&node, instance)
+        .map_err(anyhow::Error::msg)?
+        .subscriber_builder()
+        .create()
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let joints = services::joints(&node, instance)
+        .map_err(anyhow::Error::msg)?
+        .subscriber_builder()
+        .create()
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let mut world = World::new(&config);
+    let dof = robot.dof();
+    let _ = ready.send(());
+    let reject = |why: String| {
+        warn!("rejected input: {why}");
+        stats.inner.lock().expect("stats lock").rejected += 1;
+    };
+    while !stop.load(Ordering::Relaxed) {
+        let mut changed = false;
+        while let Ok(Some(s)) = joints.receive() {
+            let js = *s.payload();
+            if js.version != PROTOCOL_VERSION {
+                reject(format!(
+                    "joint state of protocol version {}, expected {PROTOCOL_VERSION}",
+                    js.version
+                ));
+                continue;
+            }
+            if js.count as usize != dof {
+                reject(format!(
+                    "joint state with {} joints, the robot has {dof}",
+                    js.count
+                ));
+                continue;
+            }
+            let q = js.positions[..dof].to_vec();
+            if let Err(e) = robot.validate(&q) {
+                reject(format!("joint state: {e}"));
+                continue;
+            }
+            world.set_joints(q);
+            stats.inner.lock().expect("stats lock").joint_states += 1;
+        }
+        while let Ok(Some(s)) = objects.receive() {
+            let u = *s.payload();
+            if u.version != PROTOCOL_VERSION {
+                reject(format!(
+                    "object update of protocol version {}, expected {PROTOCOL_VERSION}",
+                    u.version
+                ));
+                continue;
+            }
+            match object_of(&u) {
+                Ok(Some(o)) => world.upsert_object(o),
+                Ok(None) => {
+                    if !world.remove_object(&wire::name_str(&u.id)) {
+                        reject(format!(
+                            "removal of unknown object '{}'",
+                            wire::name_str(&u.id)
+                        ));
+                        continue;
+                    }
+                }
+                Err(why) => {
+                    reject(why);
+                    continue;
+                }
+            }
+            changed = true;
+            stats.inner.lock().expect("stats lock").objects += 1;
+        }
+        while let Ok(Some(s)) = clouds.receive() {
+            let h = *s.user_header();
+            let points: &[Point] = s.payload();
+            if h.version != PROTOCOL_VERSION {
+                reject(format!(
+                    "cloud of protocol version {}, expected {PROTOCOL_VERSION}",
+                    h.version
+                ));
+                continue;
+            }
+            if points.is_empty() || h.point_count as usize != points.len() {
+                reject(format!(
+                    "cloud header says {} points, payload holds {}",
+                    h.point_count,
+                    points.len()
+                ));
+                continue;
+            }
+            if points.len() > config.map.max_points {
+                reject(format!(
+                    "cloud of {} points, the limit is {}",
+                    points.len(),
+                    config.map.max_points
+                ));
+                continue;
+            }
+            let p = h.sensor_pose;
+            let Some(pose) = p
+                .iter()
+                .all(|v| v.is_finite())
+                .then(|| pose_from_xyz_xyzw([p[0], p[1], p[2]], [p[3], p[4], p[5], p[6]]))
+                .flatten()
+            else {
+                reject(format!(
+                    "cloud from frame '{}': invalid sensor pose",
+                    wire::name_str(&h.frame_id)
+                ));
+                continue;
+            };
+            let latency_us = now_ns().saturating_sub(h.stamp_ns) as f64 / 1e3;
+            world.insert_cloud(&robot, Point::as_arrays(points), &pose);
+            let mut st = stats.inner.lock().expect("stats lock");
+            st.clouds += 1;
+            st.last_cloud_stamp_ns = h.stamp_ns;
+            st.record_cloud_latency(latency_us);
+            changed = true;
+        }
+        if changed {
+            let snap = world.snapshot();
+            {
+                let mut st = stats.inner.lock().expect("stats lock");
+                st.map_blocks = snap.map.block_count() as u64;
+                st.world_objects = snap.scene.objects.len() as u64;
+            }
+            *snapshot.lock().expect("snapshot lock") = Arc::new(snap);
+        } else if node.wait(Duration::from_micros(200)).is_err() {
+            break;
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,284 @@
+//! The plan and status services: validate each request, plan on the latest world snapshot, reply
+//! with a status code and the path, then (optionally) learn from the solution.
+
+use super::ingest::SnapshotCell;
+use super::Stats;
+use crate::config::Config;
+use ember_engine::experience::database::Retrieval;
+use ember_engine::experience::primitive::octoboxes;
+use ember_engine::experience::train::learn;
+use ember_engine::experience::{FlameDb, GlobalSampler, SparkDb};
+use ember_engine::planning::{
+    self, Goal, PlanError, PlanRequest, PlannerParams, PoseGoal, Sampler, UniformSampler,
+};
+use ember_engine::robot::{ConfigError, Robot};
+use ember_engine::scene::pose_from_xyz_xyzw;
+use ember_sdk::wire::{
+    self, GoalKind, Method, PlanRequestHeader, PlanResponseHeader, StatusReply, PROTOCOL_VERSION,
+};
+use ember_sdk::Status;
+use std::time::{Duration, Instant};
+
+/// The experience databases the planner uses and extends.
+pub struct Experience {
+    pub spark: SparkDb,
+    pub flame: FlameDb,
+    pub dirty: bool,
+}
+
+/// An answer before it goes on the wire.
+pub struct Answer {
+    pub header: PlanResponseHeader,
+    pub path: Vec<Vec<f64>>,
+}
+
+fn fail(status: Status, message: impl AsRef<str>) -> Answer {
+    let mut header = PlanResponseHeader {
+        status: status as u32,
+        ..Default::default()
+    };
+    let m = message.as_ref().as_bytes();
+    let n = m.len().min(header.message.len());
+    header.message[..n].copy_from_slice(&m[..n]);
+    Answer {
+        header,
+        path: Vec::new(),
+    }
+}
+
+fn status_of(e: &PlanError) -> Status {
+    match e {
+        PlanError::InvalidStart(ConfigError::WrongLength { .. })
+        | PlanError::InvalidGoal(ConfigError::WrongLength { .. }) => Status::WrongDof,
+        PlanError::InvalidStart(ConfigError::NotFinite { .. })
+        | PlanError::InvalidGoal(ConfigError::NotFinite { .. }) => Status::NotFinite,
+        PlanError::InvalidStart(_) => Status::InvalidStart,
+        PlanError::StartInCollision(_) => Status::StartInCollision,
+        PlanError::InvalidGoal(_) => Status::InvalidGoal,
+        PlanError::GoalInCollision(_) => Status::GoalInCollision,
+        PlanError::UnknownLink(_) => Status::UnknownLink,
+        PlanError::UnreachablePose { .. } => Status::UnreachablePose,
+        PlanError::Timeout { .. } => Status::Timeout,
+    }
+}
+
+/// Validates and answers one request.
+pub fn answer(
+    config: &Config,
+    robot: &Robot,
+    snapshot: &SnapshotCell,
+    experience: &mut Experience,
+    h: &PlanRequestHeader,
+    values: &[f64],
+) -> Answer {
+    let t0 = Instant::now();
+    if h.version != PROTOCOL_VERSION {
+        return fail(
+            Status::VersionMismatch,
+            format!(
+                "request of protocol version {}, this daemon speaks {PROTOCOL_VERSION}",
+                h.version
+            ),
+        );
+    }
+    let dof = robot.dof();
+    if h.dof as usize != dof {
+        return fail(
+            Status::WrongDof,
+            format!(
+                "request has {} joints per configuration, the robot has {dof}",
+                h.dof
+            ),
+        );
+    }
+    let goal_kind = match h.goal_kind {
+        k if k == GoalKind::Joints as u32 => GoalKind::Joints,
+        k if k == GoalKind::Pose as u32 => GoalKind::Pose,
+        k => return fail(Status::BadRequest, format!("unknown goal kind {k}")),
+    };
+    let method = match h.method {
+        m if m == Method::Auto as u32 => {
+            if experience.spark.is_empty() {
+                Method::Uniform
+            } else {
+                Method::Spark
+            }
+        }
+        m if m == Method::Uniform as u32 => Method::Uniform,
+        m if m == Method::Spark as u32 => Method::Spark,
+        m if m == Method::Flame as u32 => Method::Flame,
+        m => return fail(Status::BadRequest, format!("unknown method {m}")),
+    };
+    let goals = if goal_kind == GoalKind::Joints {
+        h.goal_count as usize
+    } else {
+        0
+    };
+    if goal_kind == GoalKind::Joints && goals == 0 {
+        return fail(Status::BadRequest, "joint goal without goal configurations");
+    }
+    if values.len() != dof * (1 + goals) {
+        return fail(
+            Status::BadRequest,
+            format!(
+                "payload holds {} values, expected {} ({} configurations of {dof})",
+                values.len(),
+                dof * (1 + goals),
+                1 + goals
+            ),
+        );
+    }
+    let numbers = values.iter().chain(&h.pose).chain([
+        &h.time_limit_s,
+        &h.position_tolerance,
+        &h.orientation_tolerance,
+    ]);
+    if numbers.clone().any(|v| !v.is_finite()) {
+        return fail(
+            Status::NotFinite,
+            "the request holds a NaN or infinite number",
+        );
+    }
+    let start = values[..dof].to_vec();
+    let goal = match goal_kind {
+        GoalKind::Joints => Goal::Joints(
+            values[dof..]
+                .chunks_exact(dof)
+                .map(<[f64]>::to_vec)
+                .collect(),
+        ),
+        GoalKind::Pose => {
+            let p = h.pose;
+            let Some(pose) = pose_from_xyz_xyzw([p[0], p[1], p[2]], [p[3], p[4], p[5], p[6]])
+            else {
+                return fail(Status::BadRequest, "pose goal with a zero quaternion");
+            };
+            if !(h.position_tolerance > 0.0 && h.orientation_tolerance > 0.0) {
+                return fail(Status::BadRequest, "pose goal tolerances must be positive");
+            }
+            Goal::Pose(PoseGoal {
+                link: None,
+                pose,
+                position_tolerance: h.position_tolerance,
+                orientation_tolerance: h.orientation_tolerance,
+            })
+        }
+    };
+    let snap = snapshot.lock().expect("snapshot lock").clone();
+    let t_ret = Instant::now();
+    let retrieval = match method {
+        Method::Spark => experience.spark.retrieve(&snap.pairs),
+        Method::Flame => experience.flame.retrieve(&octoboxes(&snap.map)),
+        _ => Retrieval::default(),
+    };
+    let local_samplers = retrieval.samplers.len() as u32;
+    let mut sampler: Box<dyn Sampler> = match method {
+        Method::Uniform | Method::Auto => Box::new(UniformSampler),
+        _ => Box::new(GlobalSampler::new(
+            retrieval,
+            experience.spark.params().sigma,
+            experience.spark.params().lambda,
+        )),
+    };
+    let retrieval_us = t_ret.elapsed().as_secs_f64() * 1e6;
+    let time_limit = if h.time_limit_s > 0.0 {
+        h.time_limit_s
+    } else {
+        config.planner.default_time_limit_s
+    };
+    let request = PlanRequest {
+        start,
+        goal,
+        params: PlannerParams {
+            seed: h.seed,
+            time_limit: Duration::from_secs_f64(time_limit.min(3600.0)),
+            range: config.planner.range,
+            simplify: config.planner.simplify,
+            ..Default::default()
+        },
+    };
+    match planning::plan(robot, &snap.env, &request, sampler.as_mut()) {
+        Ok(res) => {
+            let s = res.stats;
+            let mut header = PlanResponseHeader {
+                status: Status::Ok as u32,
+                dof: dof as u32,
+                waypoints: res.path.len() as u32,
+                iterations: s.iterations,
+                retrieval_us,
+                planning_us: (s.ik_s + s.search_s) * 1e6,
+                simplify_us: s.simplify_s * 1e6,
+                total_us: 0.0,
+                local_samplers,
+                method: method as u32,
+                ..Default::default()
+            };
+            let msg = format!(
+                "solved: {} waypoints, {} iterations",
+                res.path.len(),
+                s.iterations
+            );
+            let n = msg.len().min(header.message.len());
+            header.message[..n].copy_from_slice(&msg.as_bytes()[..n]);
+            header.total_us = t0.elapsed().as_secs_f64() * 1e6;
+            if config.experience.online_learning {
+                // After the reply is built: learning never delays the answer's timing fields.
+                let _ = learn(
+                    robot,
+                    &snap.scene,
+                    Some(&snap.map),
+                    &res.path,
+                    None,
+                    &mut experience.spark,
+                    Some(&mut experience.flame),
+                );
+                experience.dirty = true;
+            }
+            Answer {
+                header,
+                path: res.path,
+            }
+        }
+        Err(e) => {
+            let mut a = fail(status_of(&e), e.to_string());
+            a.header.retrieval_us = retrieval_us;
+            a.header.method = method as u32;
+            a.header.total_us = t0.elapsed().as_secs_f64() * 1e6;
+            a
+        }
+    }
+}
+
+/// The status reply.
+pub fn status(
+    stats: &Stats,
+    robot: &Robot,
+    started: Instant,
+    experience: &Experience,
+) -> StatusReply {
+    let st = stats.inner.lock().expect("stats lock");
+    let (p50, p99) = st.cloud_latency();
+    StatusReply {
+        version: PROTOCOL_VERSION,
+        dof: robot.dof() as u32,
+        uptime_s: started.elapsed().as_secs_f64(),
+        clouds: st.clouds,
+        objects: st.objects,
+        joint_states: st.joint_states,
+        rejected: st.rejected,
+        plans: st.plans,
+        solved: st.solved,
+        cloud_latency_p50_us: p50,
+        cloud_latency_p99_us: p99,
+        last_cloud_stamp_ns: st.last_cloud_stamp_ns,
+        map_blocks: st.map_blocks,
+        world_objects: st.world_objects,
+        spark_entries: experience.spark.len() as u64,
+        flame_entries: experience.flame.len() as u64,
+    }
+}
+
+/// The message of a reply as text (for logs).
+pub fn message(h: &PlanResponseHeader) -> String {
+    wire::name_str(&h.message)
+}

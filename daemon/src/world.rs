@@ -1,0 +1,120 @@
+//! The daemon's world model, kept up to date incrementally by the ingest thread, and the
+//! immutable snapshots the planner works on.
+
+use crate::config::Config;
+use ember_engine::experience::primitive::{spark_pairs_of, SparkPair};
+use ember_engine::experience::ExperienceParams;
+use ember_engine::robot::Robot;
+use ember_engine::scene::Scene;
+use ember_engine::world::map::{MapParams, OccupancyMap, RobotFilter};
+use ember_engine::world::{Environment, Object};
+use std::sync::Arc;
+
+/// What the planner sees: a consistent copy of the world at one instant.
+pub struct Snapshot {
+    /// Objects as a scene (SPARK's input).
+    pub scene: Scene,
+    /// SPARK pairs of the objects.
+    pub pairs: Vec<SparkPair>,
+    /// The occupancy map (FLAME's input; an obstacle too when configured).
+    pub map: Arc<OccupancyMap>,
+    /// Objects (+ map when configured) for collision checking.
+    pub env: Environment,
+}
+
+/// The mutable world (owned by the ingest thread).
+pub struct World {
+    scene: Scene,
+    pairs: Vec<SparkPair>,
+    map: Arc<OccupancyMap>,
+    joints: Option<Vec<f64>>,
+    params: ExperienceParams,
+    use_map: bool,
+    padding: f64,
+}
+
+impl World {
+    /// An empty world.
+    pub fn new(config: &Config) -> Self {
+        World {
+            scene: Scene::default(),
+            pairs: Vec::new(),
+            map: Arc::new(OccupancyMap::new(MapParams {
+                resolution: config.map.resolution,
+                max_range: config.map.max_range,
+                bounds: Some((config.map.bounds_min, config.map.bounds_max)),
+                ..Default::default()
+            })),
+            joints: None,
+            params: ExperienceParams::default(),
+            use_map: config.planner.use_map,
+            padding: config.map.self_filter_padding,
+        }
+    }
+
+    /// Adds or moves an object; only its SPARK pairs are recomputed.
+    pub fn upsert_object(&mut self, object: Object) {
+        let name = object.name.clone();
+        match self.scene.objects.iter().position(|o| o.name == name) {
+            Some(i) => self.scene.objects[i] = object,
+            None => self.scene.objects.push(object),
+        }
+        self.pairs
+            .retain(|p| p.names[0] != name && p.names[1] != name);
+        let i = self
+            .scene
+            .objects
+            .iter()
+            .position(|o| o.name == name)
+            .expect("just inserted");
+        self.pairs
+            .extend(spark_pairs_of(&self.scene, i, &self.params));
+    }
+
+    /// Removes an object and its pairs; false when unknown.
+    pub fn remove_object(&mut self, name: &str) -> bool {
+        let before = self.scene.objects.len();
+        self.scene.objects.retain(|o| o.name != name);
+        self.pairs
+            .retain(|p| p.names[0] != name && p.names[1] != name);
+        self.scene.objects.len() != before
+    }
+
+    /// Sets the joint state.
+    pub fn set_joints(&mut self, q: Vec<f64>) {
+        self.joints = Some(q);
+    }
+
+    /// Folds a cloud into the map, dropping the robot's own points at the latest joint state;
+    /// returns the number of octoboxes whose mask changed.
+    pub fn insert_cloud(
+        &mut self,
+        robot: &Robot,
+        points: &[[f32; 3]],
+        sensor_pose: &ember_engine::Pose,
+    ) -> usize {
+        let filter = self
+            .joints
+            .as_ref()
+            .filter(|q| robot.validate(q).is_ok())
+            .map(|q| RobotFilter::new(robot, q, self.padding));
+        let map = Arc::make_mut(&mut self.map);
+        let report = map.insert_cloud(points, sensor_pose, filter.as_ref());
+        report.changed.len()
+    }
+
+    /// A snapshot of the current state.
+    pub fn snapshot(&self) -> Snapshot {
+        let mut env = Environment::from_objects(self.scene.objects.iter().cloned())
+            .expect("objects were validated on arrival");
+        if self.use_map {
+            env.set_map(Some(self.map.clone()));
+        }
+        Snapshot {
+            scene: self.scene.clone(),
+            pairs: self.pairs.clone(),
+            map: self.map.clone(),
+            env,
+        }
+    }
+}

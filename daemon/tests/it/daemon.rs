@@ -1,0 +1,381 @@
+//! Cross-process tests: a real `ember run` process and this test process as its client, over a
+//! real iceoryx2 service. Each test runs its own instance name.
+
+use ember_engine::collision::checker::DEFAULT_RESOLUTION;
+use ember_engine::planning::path_is_valid;
+use ember_engine::robot::Robot;
+use ember_engine::scene::Scene;
+use ember_sdk::wire::{self, Method, PlanRequestHeader, Point, ShapeKind, PROTOCOL_VERSION};
+use ember_sdk::{Client, PlanCall, Status};
+use std::io::{BufRead, BufReader};
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+const TUCK: [f64; 8] = [0.1, 1.32, 1.40, -0.2, 1.72, 0.0, 1.66, 0.0];
+const FREE_GOAL: [f64; 8] = [0.3, 0.2, -0.6, 0.0, 0.6, 0.0, 0.0, 0.0];
+
+struct Daemon {
+    child: Child,
+    instance: String,
+    db_dir: PathBuf,
+}
+
+impl Daemon {
+    fn start(tag: &str) -> Daemon {
+        let instance = format!("it-{tag}-{}", std::process::id());
+        let db_dir = std::env::temp_dir().join(format!("ember-db-{instance}"));
+        Self::start_with(instance, db_dir)
+    }
+
+    fn start_with(instance: String, db_dir: PathBuf) -> Daemon {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_ember"))
+            .args([
+                "run",
+                "--instance",
+                &instance,
+                "--db-dir",
+                db_dir.to_str().unwrap(),
+            ])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("ember run starts");
+        let mut line = String::new();
+        BufReader::new(child.stdout.as_mut().unwrap())
+            .read_line(&mut line)
+            .unwrap();
+        assert!(line.starts_with("emberd ready"), "daemon said: {line}");
+        Daemon {
+            child,
+            instance,
+            db_dir,
+        }
+    }
+
+    fn client(&self) -> Client {
+        let deadline = Instant::now() + Duration::from_secs(10);
+        loop {
+            match Client::connect(&self.instance) {
+                Ok(c) => return c,
+                Err(e) if Instant::now() > deadline => panic!("cannot connect: {e}"),
+                Err(_) => std::thread::sleep(Duration::from_millis(20)),
+            }
+        }
+    }
+
+    fn signal(&self, sig: &str) {
+        Command::new("kill")
+            .args([sig, &self.child.id().to_string()])
+            .status()
+            .unwrap();
+    }
+}
+
+impl Drop for Daemon {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+        let _ = std::fs::remove_dir_all(&self.db_dir);
+    }
+}
+
+fn table_scene() -> Scene {
+    Scene::load(crate::fixtures().join("moveit/scene.yaml")).unwrap()
+}
+
+/// Publishes the fixture's table scene as object updates.
+fn publish_table(client: &Client) {
+    for o in table_scene().objects {
+        let (shape, dims) = match o.shape {
+            ember_engine::collision::Shape::Box { half_extents: h } => {
+                (ShapeKind::Box, [2.0 * h[0], 2.0 * h[1], 2.0 * h[2]])
+            }
+            ember_engine::collision::Shape::Cylinder {
+                radius,
+                half_length,
+            } => (ShapeKind::Cylinder, [radius, 2.0 * half_length, 0.0]),
+            _ => unreachable!(),
+        };
+        let t = o.pose.translation.vector;
+        let q = o.pose.rotation.coords;
+        client
+            .publish_object(&o.name, shape, dims, [t.x, t.y, t.z, q.x, q.y, q.z, q.w])
+            .unwrap();
+    }
+}
+
+fn wait_for(
+    client: &Client,
+    what: &str,
+    f: impl Fn(&wire::StatusReply) -> bool,
+) -> wire::StatusReply {
+    let deadline = Instant::now() + Duration::from_secs(10);
+    loop {
+        let s = client.status(Duration::from_secs(2)).unwrap();
+        if f(&s) {
+            return s;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "timed out waiting for {what}: {s:?}"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+fn call(goal: [f64; 8]) -> PlanCall {
+    PlanCall {
+        start: TUCK.to_vec(),
+        goals: vec![goal.to_vec()],
+        pose: None,
+        method: Method::Uniform,
+        time_limit_s: 10.0,
+        seed: 3,
+    }
+}
+
+#[test]
+fn objects_and_clouds_change_the_world_and_plans_come_back_valid() {
+    let d = Daemon::start("world");
+    let client = d.client();
+    publish_table(&client);
+    wait_for(&client, "objects", |s| s.world_objects == 3);
+    // A goal through the table is refused now that the table is known.
+    let through = [0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 0.0, 0.0];
+    let reply = client
+        .plan(&call(through), Duration::from_secs(20))
+        .unwrap();
+    assert_eq!(reply.status, Status::GoalInCollision, "{}", reply.message());
+    // A free goal is planned; the path is valid in the same scene.
+    let reply = client
+        .plan(&call(FREE_GOAL), Duration::from_secs(20))
+        .unwrap();
+    assert_eq!(reply.status, Status::Ok, "{}", reply.message());
+    let robot = Robot::builtin("fetch").unwrap();
+    let env = table_scene().environment().unwrap();
+    assert!(path_is_valid(&robot, &env, &reply.path, DEFAULT_RESOLUTION));
+    assert_eq!(reply.path.first().unwrap(), &TUCK.to_vec());
+    assert_eq!(reply.path.last().unwrap(), &FREE_GOAL.to_vec());
+    // Same seed, same world: the same path.
+    let again = client
+        .plan(&call(FREE_GOAL), Duration::from_secs(20))
+        .unwrap();
+    assert_eq!(again.path, reply.path);
+    // A cloud goes into the map: a wall seen from the head.
+    let n = 200 * 200;
+    client
+        .publish_cloud(
+            "head_camera",
+            [0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            ember_sdk::client::now_ns(),
+            n,
+            |i| Point {
+                x: 1.5,
+                y: -0.5 + (i % 200) as f32 * 0.005,
+                z: -0.5 + (i / 200) as f32 * 0.005,
+            },
+        )
+        .unwrap();
+    let s = wait_for(&client, "the cloud", |s| s.clouds == 1);
+    assert!(s.map_blocks > 100, "{s:?}");
+    // Removing the table makes the goal through it free.
+    client
+        .publish_object(
+            "table",
+            ShapeKind::Remove,
+            [0.0; 3],
+            [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
+        )
+        .unwrap();
+    wait_for(&client, "removal", |s| s.world_objects == 2);
+    let reply = client
+        .plan(&call(through), Duration::from_secs(20))
+        .unwrap();
+    assert_eq!(reply.status, Status::Ok, "{}", reply.message());
+}
+
+#[test]
+fn every_bad_input_gets_its_own_status_and_the_daemon_keeps_serving() {
+    let d = Daemon::start("bad");
+    let client = d.client();
+    publish_table(&client);
+    wait_for(&client, "objects", |s| s.world_objects == 3);
+    let header = PlanRequestHeader {
+        version: PROTOCOL_VERSION,
+        dof: 8,
+        goal_kind: 0,
+        goal_count: 1,
+        method: Method::Uniform as u32,
+        flags: 0,
+        time_limit_s: 5.0,
+        seed: 1,
+        pose: [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
+        position_tolerance: 0.0,
+        orientation_tolerance: 0.0,
+    };
+    let good: Vec<f64> = TUCK.iter().chain(FREE_GOAL.iter()).copied().collect();
+    let t = Duration::from_secs(20);
+    let status = |h: PlanRequestHeader, v: &[f64]| client.plan_raw(h, v, t).unwrap().status;
+
+    assert_eq!(
+        status(
+            PlanRequestHeader {
+                version: 99,
+                ..header
+            },
+            &good
+        ),
+        Status::VersionMismatch
+    );
+    assert_eq!(
+        status(PlanRequestHeader { dof: 7, ..header }, &good[..14]),
+        Status::WrongDof
+    );
+    assert_eq!(status(header, &good[..12]), Status::BadRequest);
+    assert_eq!(
+        status(
+            PlanRequestHeader {
+                method: 77,
+                ..header
+            },
+            &good
+        ),
+        Status::BadRequest
+    );
+    let mut nan = good.clone();
+    nan[3] = f64::NAN;
+    assert_eq!(status(header, &nan), Status::NotFinite);
+    let mut inf = good.clone();
+    inf[12] = f64::INFINITY;
+    assert_eq!(status(header, &inf), Status::NotFinite);
+    let mut out = good.clone();
+    out[4] = 3.0; // elbow_flex beyond 2.251
+    assert_eq!(status(header, &out), Status::InvalidStart);
+    let mut goal_out = good.clone();
+    goal_out[8] = 1.0; // torso beyond 0.386
+    assert_eq!(status(header, &goal_out), Status::InvalidGoal);
+    let through = [0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 0.0, 0.0];
+    let start_in: Vec<f64> = through.iter().chain(FREE_GOAL.iter()).copied().collect();
+    assert_eq!(status(header, &start_in), Status::StartInCollision);
+    let pose_header = PlanRequestHeader {
+        goal_kind: 1,
+        goal_count: 0,
+        pose: [3.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+        position_tolerance: 0.01,
+        orientation_tolerance: 0.1,
+        ..header
+    };
+    assert_eq!(status(pose_header, &TUCK), Status::UnreachablePose);
+
+    // Bad sensor data and objects are dropped and counted.
+    let before = client.status(t).unwrap().rejected;
+    client
+        .publish_object(
+            "bad",
+            ShapeKind::Box,
+            [f64::NAN, 1.0, 1.0],
+            [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
+        )
+        .unwrap();
+    client
+        .publish_object(
+            "bad2",
+            ShapeKind::Box,
+            [-1.0, 1.0, 1.0],
+            [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
+        )
+        .unwrap();
+    client
+        .publish_cloud(
+            "cam",
+            [f64::NAN, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
+            0,
+            10,
+            |_| Point::default(),
+        )
+        .unwrap();
+    client.publish_joints(&[0.0; 5]).unwrap();
+    wait_for(&client, "rejections", |s| s.rejected == before + 4);
+
+    // And it still plans.
+    assert_eq!(status(header, &good), Status::Ok);
+}
+
+#[test]
+fn sigterm_saves_the_database_and_sigkill_allows_an_immediate_restart() {
+    let d = Daemon::start("life");
+    let client = d.client();
+    publish_table(&client);
+    wait_for(&client, "objects", |s| s.world_objects == 3);
+    // Learning online from a solved plan that ends with the hand next to the can on the table.
+    let robot = Robot::builtin("fetch").unwrap();
+    let env = table_scene().environment().unwrap();
+    let mut checker = ember_engine::collision::SphereChecker::new(&robot, &env);
+    let goal = ember_engine::planning::PoseGoal {
+        link: None,
+        pose: ember_engine::Pose::translation(0.66, 0.1, 0.86),
+        position_tolerance: 0.005,
+        orientation_tolerance: 0.05,
+    };
+    let mut rng = <ember_engine::planning::PlannerRng as rand::SeedableRng>::seed_from_u64(8);
+    let ik =
+        ember_engine::planning::ik::solve(&mut checker, &goal, None, &Default::default(), &mut rng)
+            .unwrap();
+    let mut near = call(FREE_GOAL);
+    near.goals = vec![ik[0].clone()];
+    let r = client.plan(&near, Duration::from_secs(20)).unwrap();
+    assert_eq!(r.status, Status::Ok, "{}", r.message());
+    drop(client);
+    let (instance, db_dir) = (d.instance.clone(), d.db_dir.clone());
+    d.signal("-TERM");
+    let mut d = d;
+    let code = d.child.wait().unwrap();
+    assert!(code.success(), "clean exit: {code:?}");
+    assert!(db_dir.join("spark.emberdb").exists() && db_dir.join("flame.emberdb").exists());
+    std::mem::forget(d); // keep the database folder for the restart
+
+    let d = Daemon::start_with(instance.clone(), db_dir.clone());
+    d.signal("-KILL");
+    let mut d = d;
+    d.child.wait().unwrap();
+    std::mem::forget(d);
+    // Restarted at once under the same instance: serving again, with the saved experience.
+    let d = Daemon::start_with(instance, db_dir);
+    let client = d.client();
+    let s = client.status(Duration::from_secs(2)).unwrap();
+    assert!(s.spark_entries + s.flame_entries > 0, "{s:?}");
+    let r = client
+        .plan(&call(FREE_GOAL), Duration::from_secs(20))
+        .unwrap();
+    assert_eq!(r.status, Status::Ok);
+}
+
+#[test]
+fn two_daemons_run_side_by_side() {
+    let a = Daemon::start("a");
+    let b = Daemon::start("b");
+    let (ca, cb) = (a.client(), b.client());
+    publish_table(&ca);
+    wait_for(&ca, "objects", |s| s.world_objects == 3);
+    assert_eq!(cb.status(Duration::from_secs(2)).unwrap().world_objects, 0);
+}
+
+#[test]
+fn shared_memory_is_private_to_the_user() {
+    let d = Daemon::start("perm");
+    let _client = d.client();
+    use std::os::unix::fs::PermissionsExt;
+    let mut checked = 0;
+    for e in std::fs::read_dir("/dev/shm").unwrap().flatten() {
+        let name = e.file_name().to_string_lossy().to_string();
+        // iceoryx2's 16-byte per-prefix marker (`*.global_mgmt`) is shared by design and holds
+        // no data; every segment of services and nodes must be owner-only.
+        if name.starts_with("iox2") && !name.ends_with(".global_mgmt") {
+            let mode = e.metadata().unwrap().permissions().mode() & 0o777;
+            assert_eq!(mode & 0o077, 0, "{name} is readable by others: {mode:o}");
+            checked += 1;
+        }
+    }
+    assert!(checked > 0, "no iceoryx2 segments found in /dev/shm");
+}

@@ -1,0 +1,319 @@
+//! The client: what a robot stack links to talk to `emberd`.
+
+use crate::services;
+use crate::status::Status;
+use crate::wire::plan::MAX_PLAN_VALUES;
+use crate::wire::{
+    self, CloudHeader, GoalKind, JointState, Method, ObjectUpdate, PlanRequestHeader,
+    PlanResponseHeader, Point, ShapeKind, MAX_CLOUD_POINTS, MAX_JOINTS, PROTOCOL_VERSION,
+};
+use iceoryx2::port::client::Client as RrClient;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::prelude::*;
+use std::time::{Duration, Instant, SystemTime};
+use thiserror::Error;
+
+/// Why a client call failed.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum ClientError {
+    /// The instance name is not usable.
+    #[error("invalid instance name '{0}' (letters, digits, '-' and '_', 1-64 characters)")]
+    InvalidInstance(String),
+    /// iceoryx2 refused an operation; the sentence says which.
+    #[error("shared-memory transport: {0}")]
+    Transport(String),
+    /// No daemon serves this instance.
+    #[error("no daemon serves instance '{0}'")]
+    NoDaemon(String),
+    /// The daemon did not answer in time.
+    #[error("no reply within {0:?}")]
+    Timeout(Duration),
+    /// The input does not fit the protocol (too many points or joints, wrong lengths).
+    #[error("invalid input: {0}")]
+    InvalidInput(String),
+}
+
+fn transport(e: impl std::fmt::Debug) -> ClientError {
+    ClientError::Transport(format!("{e:?}"))
+}
+
+/// Nanoseconds since the Unix epoch.
+pub fn now_ns() -> u64 {
+    SystemTime::now()
+        .duration_since(SystemTime::UNIX_EPOCH)
+        .map(|d| d.as_nanos() as u64)
+        .unwrap_or(0)
+}
+
+/// A plan request.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlanCall {
+    /// Start configuration.
+    pub start: Vec<f64>,
+    /// Goal configurations (joint goal); empty with `pose`.
+    pub goals: Vec<Vec<f64>>,
+    /// Pose goal for the tip link (x, y, z, qx, qy, qz, qw) with position and orientation
+    /// tolerances.
+    pub pose: Option<([f64; 7], f64, f64)>,
+    /// Sampling method.
+    pub method: Method,
+    /// Time limit, seconds.
+    pub time_limit_s: f64,
+    /// Seed.
+    pub seed: u64,
+}
+
+/// The daemon's answer.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlanReply {
+    /// Outcome (unknown codes map to `Internal`).
+    pub status: Status,
+    /// Waypoints.
+    pub path: Vec<Vec<f64>>,
+    /// The header as received (timings, counts, message).
+    pub header: PlanResponseHeader,
+}
+
+impl PlanReply {
+    /// The daemon's sentence about the outcome.
+    pub fn message(&self) -> String {
+        wire::name_str(&self.header.message)
+    }
+}
+
+/// A connection to one daemon instance.
+pub struct Client {
+    node: Node<ipc::Service>,
+    instance: String,
+    cloud: Publisher<ipc::Service, [Point], CloudHeader>,
+    objects: Publisher<ipc::Service, ObjectUpdate, ()>,
+    joints: Publisher<ipc::Service, JointState, ()>,
+    plan: RrClient<ipc::Service, [f64], PlanRequestHeader, [f64], PlanResponseHeader>,
+    status: RrClient<ipc::Service, u64, (), wire::StatusReply, ()>,
+}
+
+impl Client {
+    /// Connects to the daemon serving `instance`. Fails with `NoDaemon` when no daemon serves it.
+    pub fn connect(instance: &str) -> Result<Client, ClientError> {
+        if !crate::names::valid_instance(instance) {
+            return Err(ClientError::InvalidInstance(instance.into()));
+        }
+        set_log_level(LogLevel::Error);
+        let node = NodeBuilder::new()
+            .signal_handling_mode(SignalHandlingMode::Disabled)
+            .create::<ipc::Service>()
+            .map_err(transport)?;
+        let plan_service = services::plan(&node, instance).map_err(ClientError::Transport)?;
+        if plan_service.dynamic_config().number_of_servers() == 0 {
+            return Err(ClientError::NoDaemon(instance.into()));
+        }
+        let cloud = services::cloud(&node, instance)
+            .map_err(ClientError::Transport)?
+            .publisher_builder()
+            .initial_max_slice_len(MAX_CLOUD_POINTS)
+            .create()
+            .map_err(transport)?;
+        let objects = services::objects(&node, instance)
+            .map_err(ClientError::Transport)?
+            .publisher_builder()
+            .create()
+            .map_err(transport)?;
+        let joints = services::joints(&node, instance)
+            .map_err(ClientError::Transport)?
+            .publisher_builder()
+            .create()
+            .map_err(transport)?;
+        let plan = plan_service
+            .client_builder()
+            .initial_max_slice_len(16 * 64)
+            .allocation_strategy(AllocationStrategy::PowerOfTwo)
+            .create()
+            .map_err(transport)?;
+        let status = services::status(&node, instance)
+            .map_err(ClientError::Transport)?
+            .client_builder()
+            .create()
+            .map_err(transport)?;
+        Ok(Client {
+            node,
+            instance: instance.into(),
+            cloud,
+            objects,
+            joints,
+            plan,
+            status,
+        })
+    }
+
+    /// The instance connected to.
+    pub fn instance(&self) -> &str {
+        &self.instance
+    }
+
+    /// Publishes a cloud of `count` points, written by `fill` straight into shared memory.
+    pub fn publish_cloud(
+        &self,
+        frame_id: &str,
+        sensor_pose: [f64; 7],
+        stamp_ns: u64,
+        count: usize,
+        mut fill: impl FnMut(usize) -> Point,
+    ) -> Result<(), ClientError> {
+        if count > MAX_CLOUD_POINTS {
+            return Err(ClientError::InvalidInput(format!(
+                "{count} points, the cloud service carries at most {MAX_CLOUD_POINTS}"
+            )));
+        }
+        let mut sample = self.cloud.loan_slice_uninit(count).map_err(transport)?;
+        *sample.user_header_mut() = CloudHeader {
+            version: PROTOCOL_VERSION,
+            point_count: count as u32,
+            stamp_ns,
+            frame_id: wire::name(frame_id),
+            sensor_pose,
+        };
+        let sample = sample.write_from_fn(&mut fill);
+        sample.send().map_err(transport)?;
+        Ok(())
+    }
+
+    /// Publishes one object (add or move).
+    pub fn publish_object(
+        &self,
+        id: &str,
+        shape: ShapeKind,
+        dims: [f64; 3],
+        pose: [f64; 7],
+    ) -> Result<(), ClientError> {
+        let update = ObjectUpdate {
+            version: PROTOCOL_VERSION,
+            shape: shape as u32,
+            stamp_ns: now_ns(),
+            id: wire::name(id),
+            dims,
+            pose,
+        };
+        self.objects.send_copy(update).map_err(transport)?;
+        Ok(())
+    }
+
+    /// Publishes a raw object update (for tools and tests that send exactly what they choose).
+    pub fn publish_object_raw(&self, update: ObjectUpdate) -> Result<(), ClientError> {
+        self.objects.send_copy(update).map_err(transport)?;
+        Ok(())
+    }
+
+    /// Publishes the robot's planning-group joint positions.
+    pub fn publish_joints(&self, positions: &[f64]) -> Result<(), ClientError> {
+        if positions.len() > MAX_JOINTS {
+            return Err(ClientError::InvalidInput(format!(
+                "{} joints, at most {MAX_JOINTS}",
+                positions.len()
+            )));
+        }
+        let mut js = JointState {
+            version: PROTOCOL_VERSION,
+            count: positions.len() as u32,
+            stamp_ns: now_ns(),
+            positions: [0.0; MAX_JOINTS],
+        };
+        js.positions[..positions.len()].copy_from_slice(positions);
+        self.joints.send_copy(js).map_err(transport)?;
+        Ok(())
+    }
+
+    /// Plans; waits at most `timeout` for the reply.
+    pub fn plan(&self, call: &PlanCall, timeout: Duration) -> Result<PlanReply, ClientError> {
+        let dof = call.start.len();
+        let (kind, pose, pt, ot) = match call.pose {
+            Some((p, pt, ot)) => (GoalKind::Pose, p, pt, ot),
+            None => (
+                GoalKind::Joints,
+                [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
+                0.0,
+                0.0,
+            ),
+        };
+        let header = PlanRequestHeader {
+            version: PROTOCOL_VERSION,
+            dof: dof as u32,
+            goal_kind: kind as u32,
+            goal_count: call.goals.len() as u32,
+            method: call.method as u32,
+            flags: 0,
+            time_limit_s: call.time_limit_s,
+            seed: call.seed,
+            pose,
+            position_tolerance: pt,
+            orientation_tolerance: ot,
+        };
+        let mut values = call.start.clone();
+        for g in &call.goals {
+            values.extend_from_slice(g);
+        }
+        self.plan_raw(header, &values, timeout)
+    }
+
+    /// The daemon's counters and latencies.
+    pub fn status(&self, timeout: Duration) -> Result<wire::StatusReply, ClientError> {
+        let pending = self.status.send_copy(0).map_err(transport)?;
+        let deadline = Instant::now() + timeout;
+        loop {
+            if let Some(r) = pending.receive().map_err(transport)? {
+                return Ok(*r.payload());
+            }
+            if Instant::now() >= deadline {
+                return Err(ClientError::Timeout(timeout));
+            }
+            if self.node.wait(Duration::from_micros(50)).is_err() {
+                return Err(ClientError::Transport("interrupted".into()));
+            }
+        }
+    }
+
+    /// Sends a request exactly as given (header and payload unchecked) and waits for the reply.
+    pub fn plan_raw(
+        &self,
+        header: PlanRequestHeader,
+        values: &[f64],
+        timeout: Duration,
+    ) -> Result<PlanReply, ClientError> {
+        if values.len() > MAX_PLAN_VALUES {
+            return Err(ClientError::InvalidInput(format!(
+                "{} values, at most {MAX_PLAN_VALUES}",
+                values.len()
+            )));
+        }
+        let mut request = self
+            .plan
+            .loan_slice_uninit(values.len())
+            .map_err(transport)?;
+        *request.user_header_mut() = header;
+        let request = request.write_from_slice(values);
+        let pending = request.send().map_err(transport)?;
+        let deadline = Instant::now() + timeout;
+        loop {
+            if let Some(response) = pending.receive().map_err(transport)? {
+                let h = *response.user_header();
+                let data = response.payload();
+                let dof = h.dof as usize;
+                let path = if dof == 0 {
+                    Vec::new()
+                } else {
+                    data.chunks_exact(dof).map(<[f64]>::to_vec).collect()
+                };
+                return Ok(PlanReply {
+                    status: Status::from_code(h.status).unwrap_or(Status::Internal),
+                    path,
+                    header: h,
+                });
+            }
+            if Instant::now() >= deadline {
+                return Err(ClientError::Timeout(timeout));
+            }
+            if self.node.wait(Duration::from_micros(20)).is_err() {
+                return Err(ClientError::Transport("interrupted".into()));
+            }
+        }
+    }
+}

@@ -1,0 +1,18 @@
+//! Ember's SDK: the wire protocol spoken with `emberd` over iceoryx2 shared memory, and a client.
+//!
+//! - [`wire`]: `#[repr(C)]` payloads, one file per service, each carrying [`wire::PROTOCOL_VERSION`];
+//! - [`names`]: service names per daemon instance;
+//! - [`status`]: the numbered status codes of plan replies (codes never change);
+//! - [`services`]: the service definitions shared by daemon and clients;
+//! - [`client`]: connect, publish clouds (written straight into shared memory), objects and joint
+//!   states, plan with a timeout.
+#![warn(missing_docs)]
+
+pub mod client;
+pub mod names;
+pub mod services;
+pub mod status;
+pub mod wire;
+
+pub use client::{Client, ClientError, PlanCall, PlanReply};
+pub use status::Status;

@@ -1,0 +1,39 @@
+//! `ember/<instance>/objects`: motion-capture object updates, publish-subscribe, one object per
+//! sample. A sample with shape [`ShapeKind::Remove`] removes the object.
+
+use iceoryx2::prelude::*;
+
+/// Shape codes of [`ObjectUpdate::shape`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum ShapeKind {
+    /// Remove the object with this id.
+    Remove = 0,
+    /// Box: dims = full size x, y, z.
+    Box = 1,
+    /// Cylinder along local z: dims = radius, length, unused.
+    Cylinder = 2,
+    /// Sphere: dims = radius, unused, unused.
+    Sphere = 3,
+    /// Capsule along local z: dims = radius, length of the segment, unused.
+    Capsule = 4,
+}
+
+/// One object's state.
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+#[type_name("EmberObjectUpdate")]
+#[repr(C)]
+pub struct ObjectUpdate {
+    /// [`super::PROTOCOL_VERSION`].
+    pub version: u32,
+    /// A [`ShapeKind`] code.
+    pub shape: u32,
+    /// Measurement time, ns since the Unix epoch.
+    pub stamp_ns: u64,
+    /// Object id.
+    pub id: super::Name,
+    /// Dimensions, metres (meaning per shape).
+    pub dims: [f64; 3],
+    /// Pose in the robot base frame: x, y, z, qx, qy, qz, qw.
+    pub pose: [f64; 7],
+}
