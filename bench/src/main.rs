@@ -3,10 +3,12 @@
 //! - `collision`: FK and full configuration checks for Fetch in a shelf scene;
 //! - `plan --problems DIR...`: the uniform planner over MoveIt-style problem folders;
 //! - `map`: our occupancy map against OctoMap on the same simulated frames;
-//! - `experience --train DIR --test DIR...`: the paper's experiment (uniform vs SPARK vs FLAME).
+//! - `experience --train DIR --test DIR...`: the paper's experiment (uniform vs SPARK vs FLAME);
+//! - `ipc`: cloud hand-off and plan round-trip overhead through a real daemon.
 
 mod collision;
 mod experience;
+mod ipc;
 mod map;
 mod plan;
 mod stats;
@@ -30,6 +32,8 @@ enum Bench {
     Map(map::Args),
     /// Learn SPARK and FLAME from a training set, compare them with uniform sampling on test sets.
     Experience(experience::Args),
+    /// Cloud hand-off latency and plan round-trip overhead through a real daemon.
+    Ipc(ipc::Args),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -38,5 +42,6 @@ fn main() -> anyhow::Result<()> {
         Bench::Plan(a) => plan::run(a),
         Bench::Map(a) => map::run(a),
         Bench::Experience(a) => experience::run(a),
+        Bench::Ipc(a) => ipc::run(a),
     }
 }

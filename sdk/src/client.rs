@@ -151,6 +151,7 @@ impl Client {
     }
 
     /// Publishes a cloud of `count` points, written by `fill` straight into shared memory.
+    /// `stamp_ns` 0 stamps the cloud at the moment it is handed over.
     pub fn publish_cloud(
         &self,
         frame_id: &str,
@@ -164,15 +165,16 @@ impl Client {
                 "{count} points, the cloud service carries at most {MAX_CLOUD_POINTS}"
             )));
         }
-        let mut sample = self.cloud.loan_slice_uninit(count).map_err(transport)?;
+        let sample = self.cloud.loan_slice_uninit(count).map_err(transport)?;
+        let mut sample = sample.write_from_fn(&mut fill);
+        // The header last, so the stamp (when `stamp_ns` is 0) marks the hand-off itself.
         *sample.user_header_mut() = CloudHeader {
             version: PROTOCOL_VERSION,
             point_count: count as u32,
-            stamp_ns,
+            stamp_ns: if stamp_ns == 0 { now_ns() } else { stamp_ns },
             frame_id: wire::name(frame_id),
             sensor_pose,
         };
-        let sample = sample.write_from_fn(&mut fill);
         sample.send().map_err(transport)?;
         Ok(())
     }
@@ -311,9 +313,9 @@ impl Client {
             if Instant::now() >= deadline {
                 return Err(ClientError::Timeout(timeout));
             }
-            if self.node.wait(Duration::from_micros(20)).is_err() {
-                return Err(ClientError::Transport("interrupted".into()));
-            }
+            // The caller is blocked on this reply anyway: give the core away without sleeping,
+            // so the reply is seen within microseconds.
+            std::thread::yield_now();
         }
     }
 }

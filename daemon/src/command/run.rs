@@ -139,12 +139,25 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     use std::io::Write;
     std::io::stdout().flush().ok();
 
+    // Poll without sleeping for a while after each request (a client streaming requests gets
+    // them picked up within microseconds), then sleep in short waits.
+    let mut last_request = Instant::now() - Duration::from_secs(1);
     loop {
-        if node.wait(Duration::from_micros(50)).is_err() {
+        let busy = last_request.elapsed() < Duration::from_millis(20);
+        let wait = if busy {
+            Duration::ZERO
+        } else {
+            Duration::from_micros(50)
+        };
+        if node.wait(wait).is_err() {
             info!("termination requested");
             break;
         }
+        if busy {
+            std::thread::yield_now();
+        }
         while let Ok(Some(active)) = server.receive() {
+            last_request = Instant::now();
             let h = *active.user_header();
             let values: &[f64] = active.payload();
             let a = plan::answer(&config, &robot, &snapshot, &mut experience, &h, values);

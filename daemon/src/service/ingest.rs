@@ -203,7 +203,7 @@ pub fn run(
                 st.world_objects = snap.scene.objects.len() as u64;
             }
             *snapshot.lock().expect("snapshot lock") = Arc::new(snap);
-        } else if node.wait(Duration::from_micros(200)).is_err() {
+        } else if node.wait(Duration::from_micros(50)).is_err() {
             break;
         }
     }
