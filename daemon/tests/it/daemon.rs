@@ -379,3 +379,56 @@ fn shared_memory_is_private_to_the_user() {
     }
     assert!(checked > 0, "no iceoryx2 segments found in /dev/shm");
 }
+
+#[test]
+fn sdk_examples_run_against_a_daemon() {
+    let d = Daemon::start("examples");
+    let bin_dir = PathBuf::from(env!("CARGO_BIN_EXE_ember"))
+        .parent()
+        .unwrap()
+        .join("examples");
+    for example in ["sensor_publisher", "planning_client"] {
+        let exe = bin_dir.join(example);
+        assert!(
+            exe.exists(),
+            "{} is not built: run the workspace tests (cargo test --workspace)",
+            exe.display()
+        );
+        let out = Command::new(&exe).arg(&d.instance).output().unwrap();
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success() && text.trim_end().ends_with("ok"),
+            "{example}: {text}{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+}
+
+#[test]
+fn bad_config_key_is_named() {
+    let dir = std::env::temp_dir().join(format!("ember-cfg-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let cfg = dir.join("bad.toml");
+    std::fs::write(&cfg, "[map]\nresolution = -0.02\n").unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_ember"))
+        .args(["run", "--config", cfg.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("map.resolution") && err.contains("bad.toml"),
+        "{err}"
+    );
+    std::fs::write(&cfg, "[planner]\nrange_typo = 1.0\n").unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_ember"))
+        .args(["run", "--config", cfg.to_str().unwrap()])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.code() == Some(2) && err.contains("range_typo"),
+        "{err}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
