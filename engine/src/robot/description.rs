@@ -118,7 +118,7 @@ impl Robot {
         let urdf_text = read(&urdf_path)?;
         Self::from_parts(
             &file,
-            &toml_text_name(path),
+            &path.display().to_string(),
             &urdf_text,
             &urdf_path.display().to_string(),
         )
@@ -170,10 +170,6 @@ impl Robot {
         robot.spheres = SphereModel::generate(&robot.links, &file.spheres);
         Ok(robot)
     }
-}
-
-fn toml_text_name(path: &Path) -> String {
-    path.display().to_string()
 }
 
 fn read(path: &Path) -> Result<String, LoadRobotError> {

@@ -248,14 +248,15 @@ fn primitive(prim: &Node) -> Result<Shape, SceneError> {
     }
 }
 
+/// A list of strings.
+fn strings<'a>(node: &Node<'a>) -> Result<Vec<&'a str>, SceneError> {
+    node.seq()?.iter().map(|n| n.str()).collect()
+}
+
 /// Picks the planning group's joints out of a `joint_state {name[], position[]}`.
 fn group_config(js: &Node, robot: &Robot) -> Result<Vec<f64>, SceneError> {
     let names_node = js.get("name")?;
-    let names: Vec<&str> = names_node
-        .seq()?
-        .iter()
-        .map(|n| n.str())
-        .collect::<Result<_, _>>()?;
+    let names = strings(&names_node)?;
     let pos_node = js.get("position")?;
     let pos = pos_node.f64s()?;
     if names.len() != pos.len() {
@@ -410,11 +411,7 @@ pub fn path_from_yaml(
     let root = Node::root(&doc, origin);
     let jt = root.get("joint_trajectory")?;
     let names_node = jt.get("joint_names")?;
-    let names: Vec<&str> = names_node
-        .seq()?
-        .iter()
-        .map(|n| n.str())
-        .collect::<Result<_, _>>()?;
+    let names = strings(&names_node)?;
     let index: Vec<usize> = robot
         .variables()
         .iter()

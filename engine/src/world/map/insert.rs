@@ -307,32 +307,21 @@ impl OccupancyMap {
             let before = blk.occupied;
             let leaves = blk.expand();
             let mut occupied = before;
-            for bit in bits(hit) {
-                let base = if known & (1 << bit) != 0 {
-                    leaves[bit]
-                } else {
-                    0.0
-                };
-                let v = (base + hit_l).min(max);
-                leaves[bit] = v;
-                if v > threshold {
-                    occupied |= 1 << bit;
-                } else {
-                    occupied &= !(1 << bit);
-                }
-            }
-            for bit in bits(free) {
-                let base = if known & (1 << bit) != 0 {
-                    leaves[bit]
-                } else {
-                    0.0
-                };
-                let v = (base + miss_l).max(min);
-                leaves[bit] = v;
-                if v > threshold {
-                    occupied |= 1 << bit;
-                } else {
-                    occupied &= !(1 << bit);
+            // One log-odds update per marked leaf: hits add and clamp above, misses below.
+            for (mask, delta) in [(hit, hit_l), (free, miss_l)] {
+                for bit in bits(mask) {
+                    let base = if known & (1 << bit) != 0 {
+                        leaves[bit]
+                    } else {
+                        0.0
+                    };
+                    let v = (base + delta).clamp(min, max);
+                    leaves[bit] = v;
+                    if v > threshold {
+                        occupied |= 1 << bit;
+                    } else {
+                        occupied &= !(1 << bit);
+                    }
                 }
             }
             blk.known = known | hit | free;
