@@ -94,4 +94,10 @@ pub struct RunArgs {
     /// Experience database folder; overrides the config.
     #[arg(long)]
     pub db_dir: Option<PathBuf>,
+    /// Recording folder; overrides the config.
+    #[arg(long)]
+    pub record_dir: Option<PathBuf>,
+    /// Do not record this session.
+    #[arg(long)]
+    pub no_record: bool,
 }

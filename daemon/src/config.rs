@@ -15,6 +15,17 @@ pub struct Config {
     pub map: MapConfig,
     pub planner: PlannerConfig,
     pub experience: ExperienceConfig,
+    pub record: RecordConfig,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RecordConfig {
+    pub enabled: bool,
+    pub dir: PathBuf,
+    pub max_file_mb: f64,
+    pub max_file_s: f64,
+    pub queue: usize,
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -104,6 +115,11 @@ impl Config {
         )?;
         positive("planner.range", self.planner.range)?;
         positive("experience.save_every_s", self.experience.save_every_s)?;
+        positive("record.max_file_mb", self.record.max_file_mb)?;
+        positive("record.max_file_s", self.record.max_file_s)?;
+        if self.record.queue == 0 {
+            return Err("key record.queue must be at least 1".into());
+        }
         if self.map.self_filter_padding.is_nan() || self.map.self_filter_padding < 0.0 {
             return Err("key map.self_filter_padding must be >= 0".into());
         }

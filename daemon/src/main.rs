@@ -3,6 +3,7 @@
 mod cli;
 mod command;
 mod config;
+mod recorder;
 mod service;
 mod world;
 

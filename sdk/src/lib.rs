@@ -4,12 +4,14 @@
 //! - [`names`]: service names per daemon instance;
 //! - [`status`]: the numbered status codes of plan replies (codes never change);
 //! - [`services`]: the service definitions shared by daemon and clients;
+//! - [`recording`]: the message types and schemas of session recordings (MCAP, ROS 2 CDR);
 //! - [`client`]: connect, publish clouds (written straight into shared memory), objects and joint
 //!   states, plan with a timeout.
 #![warn(missing_docs)]
 
 pub mod client;
 pub mod names;
+pub mod recording;
 pub mod services;
 pub mod status;
 pub mod wire;

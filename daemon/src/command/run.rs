@@ -3,6 +3,7 @@
 
 use crate::cli::RunArgs;
 use crate::config::Config;
+use crate::recorder::{self, Record, RecorderOptions};
 use crate::service::ingest::{self, SnapshotCell};
 use crate::service::plan::{self, Experience};
 use crate::service::Stats;
@@ -65,6 +66,12 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     if let Some(d) = args.db_dir {
         config.experience.db_dir = d;
     }
+    if let Some(d) = args.record_dir {
+        config.record.dir = d;
+    }
+    if args.no_record {
+        config.record.enabled = false;
+    }
     let robot = Arc::new(super::load_robot(&config.robot)?);
     set_log_level(LogLevel::Error);
     let node = NodeBuilder::new()
@@ -107,18 +114,31 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     let snapshot: SnapshotCell = Arc::new(Mutex::new(Arc::new(World::new(&config).snapshot())));
     let stats = Arc::new(Stats::default());
     let stop = Arc::new(AtomicBool::new(false));
+    let (recorder, recorder_thread, recording) = if config.record.enabled {
+        let (r, t, path) = recorder::start(RecorderOptions {
+            dir: config.record.dir.clone(),
+            max_file_bytes: (config.record.max_file_mb * 1e6) as u64,
+            max_file_duration: Duration::from_secs_f64(config.record.max_file_s),
+            queue: config.record.queue,
+            chunk_bytes: 4 << 20,
+        })?;
+        (Some(r), Some(t), path.display().to_string())
+    } else {
+        (None, None, "off".to_string())
+    };
     let (ready_tx, ready_rx) = std::sync::mpsc::channel();
     let ingest = {
-        let (config, robot, snapshot, stats, stop) = (
+        let (config, robot, snapshot, stats, stop, rec) = (
             config.clone(),
             robot.clone(),
             snapshot.clone(),
             stats.clone(),
             stop.clone(),
+            recorder.clone(),
         );
         std::thread::Builder::new()
             .name("ingest".into())
-            .spawn(move || ingest::run(config, robot, snapshot, stats, stop, ready_tx))?
+            .spawn(move || ingest::run(config, robot, snapshot, stats, stop, ready_tx, rec))?
     };
     if ready_rx.recv().is_err() {
         return match ingest.join() {
@@ -129,12 +149,13 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     let started = Instant::now();
     let mut last_save = Instant::now();
     println!(
-        "emberd ready: instance '{}', robot {} ({} joints), experience {} SPARK / {} FLAME entries",
+        "emberd ready: instance '{}', robot {} ({} joints), experience {} SPARK / {} FLAME entries, recording {}",
         config.instance,
         robot.name(),
         robot.dof(),
         experience.spark.len(),
-        experience.flame.len()
+        experience.flame.len(),
+        recording
     );
     use std::io::Write;
     std::io::stdout().flush().ok();
@@ -160,7 +181,18 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
             last_request = Instant::now();
             let h = *active.user_header();
             let values: &[f64] = active.payload();
+            let recv_ns = ember_sdk::client::now_ns();
             let a = plan::answer(&config, &robot, &snapshot, &mut experience, &h, values);
+            if let Some(r) = &recorder {
+                r.record(Record::PlanRequest {
+                    recv_ns,
+                    request: plan::request_message(recv_ns, &h, values),
+                });
+                r.record(Record::PlanResponse {
+                    recv_ns: ember_sdk::client::now_ns(),
+                    response: plan::response_message(recv_ns, &a),
+                });
+            }
             {
                 let mut st = stats.inner.lock().expect("stats lock");
                 st.plans += 1;
@@ -185,7 +217,12 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
             }
         }
         while let Ok(Some(active)) = status_server.receive() {
-            let reply = plan::status(&stats, &robot, started, &experience);
+            let mut reply = plan::status(&stats, &robot, started, &experience);
+            if let Some(r) = &recorder {
+                reply.recorded = r.stats().written.load(std::sync::atomic::Ordering::Relaxed);
+                reply.recording_dropped =
+                    r.stats().dropped.load(std::sync::atomic::Ordering::Relaxed);
+            }
             if let Err(e) = active.send_copy(reply) {
                 warn!("sending status failed: {e:?}");
             }
@@ -203,6 +240,11 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     }
     if experience.dirty {
         save(&config, &mut experience);
+    }
+    // The last handle gone, the recorder writes the summary and index and stops.
+    drop(recorder);
+    if let Some(t) = recorder_thread {
+        let _ = t.join();
     }
     println!("emberd stopped");
     Ok(ExitCode::SUCCESS)

@@ -3,12 +3,14 @@
 
 use super::Stats;
 use crate::config::Config;
+use crate::recorder::{Record, Recorder};
 use crate::world::{Snapshot, World};
 use ember_engine::collision::Shape;
 use ember_engine::robot::Robot;
 use ember_engine::scene::pose_from_xyz_xyzw;
 use ember_engine::world::Object;
 use ember_sdk::client::now_ns;
+use ember_sdk::recording as messages;
 use ember_sdk::services;
 use ember_sdk::wire::{self, Point, ShapeKind, PROTOCOL_VERSION};
 use iceoryx2::prelude::*;
@@ -66,6 +68,7 @@ pub fn run(
     stats: Arc<Stats>,
     stop: Arc<AtomicBool>,
     ready: std::sync::mpsc::Sender<()>,
+    recorder: Option<Recorder>,
 ) -> anyhow::Result<()> {
     let node = NodeBuilder::new()
         .signal_handling_mode(SignalHandlingMode::Disabled)
@@ -117,6 +120,15 @@ pub fn run(
                 reject(format!("joint state: {e}"));
                 continue;
             }
+            if let Some(r) = &recorder {
+                let names = robot.variables().iter().map(|v| v.name.clone()).collect();
+                r.record(Record::Joints {
+                    recv_ns: now_ns(),
+                    stamp_ns: js.stamp_ns,
+                    names,
+                    positions: q.clone(),
+                });
+            }
             world.set_joints(q);
             stats.inner.lock().expect("stats lock").joint_states += 1;
         }
@@ -128,6 +140,22 @@ pub fn run(
                     u.version
                 ));
                 continue;
+            }
+            if let Some(r) = &recorder {
+                let update = messages::ObjectUpdate {
+                    header: messages::Header {
+                        stamp: messages::Time::from_ns(u.stamp_ns),
+                        frame_id: "base_link".into(),
+                    },
+                    id: wire::name_str(&u.id),
+                    shape: u.shape,
+                    dims: u.dims,
+                    pose: messages::Pose::from_wire(u.pose),
+                };
+                r.record(Record::Object {
+                    recv_ns: now_ns(),
+                    update,
+                });
             }
             match object_of(&u) {
                 Ok(Some(o)) => world.upsert_object(o),
@@ -187,8 +215,18 @@ pub fn run(
                 ));
                 continue;
             };
-            let latency_us = now_ns().saturating_sub(h.stamp_ns) as f64 / 1e3;
+            let recv_ns = now_ns();
+            let latency_us = recv_ns.saturating_sub(h.stamp_ns) as f64 / 1e3;
             world.insert_cloud(&robot, Point::as_arrays(points), &pose);
+            if let Some(r) = &recorder {
+                r.record(Record::Cloud {
+                    recv_ns,
+                    stamp_ns: h.stamp_ns,
+                    frame_id: wire::name_str(&h.frame_id),
+                    pose: h.sensor_pose,
+                    points: Point::as_arrays(points).to_vec(),
+                });
+            }
             let mut st = stats.inner.lock().expect("stats lock");
             st.clouds += 1;
             st.last_cloud_stamp_ns = h.stamp_ns;

@@ -275,10 +275,61 @@ pub fn status(
         world_objects: st.world_objects,
         spark_entries: experience.spark.len() as u64,
         flame_entries: experience.flame.len() as u64,
+        recorded: 0,
+        recording_dropped: 0,
     }
 }
 
 /// The message of a reply as text (for logs).
 pub fn message(h: &PlanResponseHeader) -> String {
     wire::name_str(&h.message)
+}
+
+/// The request as a recorded message.
+pub fn request_message(
+    recv_ns: u64,
+    h: &PlanRequestHeader,
+    values: &[f64],
+) -> ember_sdk::recording::PlanRequest {
+    use ember_sdk::recording::{Header, PlanRequest, Time};
+    PlanRequest {
+        header: Header {
+            stamp: Time::from_ns(recv_ns),
+            frame_id: "base_link".into(),
+        },
+        version: h.version,
+        dof: h.dof,
+        goal_kind: h.goal_kind,
+        goal_count: h.goal_count,
+        method: h.method,
+        time_limit_s: h.time_limit_s,
+        seed: h.seed,
+        pose: h.pose,
+        position_tolerance: h.position_tolerance,
+        orientation_tolerance: h.orientation_tolerance,
+        values: values.to_vec(),
+    }
+}
+
+/// The answer as a recorded message (stamped with its request's receive time).
+pub fn response_message(recv_ns: u64, a: &Answer) -> ember_sdk::recording::PlanResponse {
+    use ember_sdk::recording::{Header, PlanResponse, Time};
+    let h = &a.header;
+    PlanResponse {
+        header: Header {
+            stamp: Time::from_ns(recv_ns),
+            frame_id: "base_link".into(),
+        },
+        status: h.status,
+        dof: h.dof,
+        waypoints: h.waypoints,
+        iterations: h.iterations,
+        retrieval_us: h.retrieval_us,
+        planning_us: h.planning_us,
+        simplify_us: h.simplify_us,
+        total_us: h.total_us,
+        method: h.method,
+        message: message(h),
+        path: a.path.concat(),
+    }
 }

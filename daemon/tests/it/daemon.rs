@@ -12,17 +12,19 @@ use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-const TUCK: [f64; 8] = [0.1, 1.32, 1.40, -0.2, 1.72, 0.0, 1.66, 0.0];
-const FREE_GOAL: [f64; 8] = [0.3, 0.2, -0.6, 0.0, 0.6, 0.0, 0.0, 0.0];
+pub const TUCK: [f64; 8] = [0.1, 1.32, 1.40, -0.2, 1.72, 0.0, 1.66, 0.0];
+pub const FREE_GOAL: [f64; 8] = [0.3, 0.2, -0.6, 0.0, 0.6, 0.0, 0.0, 0.0];
 
-struct Daemon {
-    child: Child,
-    instance: String,
-    db_dir: PathBuf,
+pub struct Daemon {
+    pub child: Child,
+    pub instance: String,
+    pub db_dir: PathBuf,
+    /// The recording file the daemon announced.
+    pub recording: PathBuf,
 }
 
 impl Daemon {
-    fn start(tag: &str) -> Daemon {
+    pub fn start(tag: &str) -> Daemon {
         let instance = format!("it-{tag}-{}", std::process::id());
         let db_dir = std::env::temp_dir().join(format!("ember-db-{instance}"));
         Self::start_with(instance, db_dir)
@@ -36,6 +38,8 @@ impl Daemon {
                 &instance,
                 "--db-dir",
                 db_dir.to_str().unwrap(),
+                "--record-dir",
+                db_dir.join("recordings").to_str().unwrap(),
             ])
             .stdout(Stdio::piped())
             .stderr(Stdio::null())
@@ -46,14 +50,16 @@ impl Daemon {
             .read_line(&mut line)
             .unwrap();
         assert!(line.starts_with("emberd ready"), "daemon said: {line}");
+        let recording = PathBuf::from(line.trim().rsplit("recording ").next().unwrap());
         Daemon {
             child,
             instance,
             db_dir,
+            recording,
         }
     }
 
-    fn client(&self) -> Client {
+    pub fn client(&self) -> Client {
         let deadline = Instant::now() + Duration::from_secs(10);
         loop {
             match Client::connect(&self.instance) {
@@ -64,7 +70,7 @@ impl Daemon {
         }
     }
 
-    fn signal(&self, sig: &str) {
+    pub fn signal(&self, sig: &str) {
         Command::new("kill")
             .args([sig, &self.child.id().to_string()])
             .status()
@@ -85,7 +91,7 @@ fn table_scene() -> Scene {
 }
 
 /// Publishes the fixture's table scene as object updates.
-fn publish_table(client: &Client) {
+pub fn publish_table(client: &Client) {
     for o in table_scene().objects {
         let (shape, dims) = match o.shape {
             ember_engine::collision::Shape::Box { half_extents: h } => {
@@ -105,7 +111,7 @@ fn publish_table(client: &Client) {
     }
 }
 
-fn wait_for(
+pub fn wait_for(
     client: &Client,
     what: &str,
     f: impl Fn(&wire::StatusReply) -> bool,

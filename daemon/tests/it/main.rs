@@ -2,6 +2,7 @@
 
 mod daemon;
 mod plan;
+mod recording;
 
 use std::path::PathBuf;
 use std::process::{Command, Output};

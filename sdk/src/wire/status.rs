@@ -40,4 +40,8 @@ pub struct StatusReply {
     pub spark_entries: u64,
     /// FLAME database entries.
     pub flame_entries: u64,
+    /// Records written to the session recording.
+    pub recorded: u64,
+    /// Records dropped because the recorder fell behind.
+    pub recording_dropped: u64,
 }

@@ -1,0 +1,312 @@
+//! The session recorder: everything the daemon receives and answers, with receive time, into MCAP
+//! files (zstd chunks, indexes, summary) that ROS 2 tools, Foxglove and the Python `mcap` readers
+//! open.
+//!
+//! Recording never slows the daemon: records go through a bounded queue to a writer thread; when
+//! the queue is full the record is dropped and counted (visible in the status service and logged).
+//! Files rotate by size or duration. The writer finishes a chunk at least every second, so a
+//! daemon killed mid-recording leaves a file whose complete chunks are all readable; a clean stop
+//! writes the summary and index.
+//!
+//! Topics: `/ember/cloud` (`sensor_msgs/msg/PointCloud2`), `/ember/cloud_pose` (the sensor pose,
+//! `geometry_msgs/msg/PoseStamped`, same stamp), `/ember/joints` (`sensor_msgs/msg/JointState`),
+//! `/ember/objects` (`ember_msgs/msg/ObjectUpdate`), `/ember/plan_request` and
+//! `/ember/plan_response` (`ember_msgs/msg/PlanRequest`, `.../PlanResponse`). Log time is the
+//! daemon's receive (or reply) time; header stamps are the sender's.
+
+use ember_sdk::recording::{self as messages, encode, Header, Time};
+use std::collections::BTreeMap;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use tracing::{error, info, warn};
+
+/// One thing to record.
+pub enum Record {
+    /// A cloud: points in the sensor frame, sensor pose (wire form), frame id, stamp.
+    Cloud {
+        recv_ns: u64,
+        stamp_ns: u64,
+        frame_id: String,
+        pose: [f64; 7],
+        points: Vec<[f32; 3]>,
+    },
+    /// A joint state in group order.
+    Joints {
+        recv_ns: u64,
+        stamp_ns: u64,
+        names: Vec<String>,
+        positions: Vec<f64>,
+    },
+    /// An object update.
+    Object {
+        recv_ns: u64,
+        update: messages::ObjectUpdate,
+    },
+    /// A plan request as received.
+    PlanRequest {
+        recv_ns: u64,
+        request: messages::PlanRequest,
+    },
+    /// A plan response as sent.
+    PlanResponse {
+        recv_ns: u64,
+        response: messages::PlanResponse,
+    },
+}
+
+/// Recorder settings.
+#[derive(Debug, Clone)]
+pub struct RecorderOptions {
+    /// Folder of the session files.
+    pub dir: PathBuf,
+    /// Start a new file past this size, bytes.
+    pub max_file_bytes: u64,
+    /// Start a new file past this duration.
+    pub max_file_duration: Duration,
+    /// Records the queue holds before dropping.
+    pub queue: usize,
+    /// Target uncompressed chunk size, bytes.
+    pub chunk_bytes: u64,
+}
+
+/// Counters of the recorder.
+#[derive(Debug, Default)]
+pub struct RecorderStats {
+    pub written: AtomicU64,
+    pub dropped: AtomicU64,
+    pub bytes: AtomicU64,
+}
+
+/// The handle the daemon's threads send records to.
+#[derive(Clone)]
+pub struct Recorder {
+    tx: SyncSender<Record>,
+    stats: Arc<RecorderStats>,
+}
+
+impl Recorder {
+    /// Queues a record; drops (and counts) it when the writer is behind.
+    pub fn record(&self, r: Record) {
+        match self.tx.try_send(r) {
+            Ok(()) => {}
+            Err(TrySendError::Full(_)) | Err(TrySendError::Disconnected(_)) => {
+                let n = self.stats.dropped.fetch_add(1, Ordering::Relaxed) + 1;
+                if n.is_power_of_two() {
+                    warn!("recording queue full: {n} records dropped so far");
+                }
+            }
+        }
+    }
+
+    /// The counters.
+    pub fn stats(&self) -> &RecorderStats {
+        &self.stats
+    }
+}
+
+/// Starts the writer thread; returns the handle and the thread (joined after the last handle is
+/// dropped, which closes the files cleanly).
+pub fn start(
+    options: RecorderOptions,
+) -> anyhow::Result<(Recorder, std::thread::JoinHandle<()>, PathBuf)> {
+    std::fs::create_dir_all(&options.dir).map_err(|e| {
+        anyhow::anyhow!(
+            "cannot create recording folder {}: {e}",
+            options.dir.display()
+        )
+    })?;
+    let (tx, rx) = sync_channel(options.queue.max(1));
+    let stats = Arc::new(RecorderStats::default());
+    let first = file_name(&options.dir, 0);
+    let writer = SessionWriter::open(&first, &options)?;
+    let st = stats.clone();
+    let thread = std::thread::Builder::new()
+        .name("recorder".into())
+        .spawn(move || run(rx, writer, options, st))?;
+    Ok((Recorder { tx, stats }, thread, first))
+}
+
+fn file_name(dir: &Path, index: usize) -> PathBuf {
+    let ns = ember_sdk::client::now_ns();
+    dir.join(format!("session-{}-{index:03}.mcap", ns / 1_000_000))
+}
+
+/// One open MCAP file with its channels.
+struct SessionWriter {
+    writer: mcap::Writer<BufWriter<std::fs::File>>,
+    channels: BTreeMap<&'static str, u16>,
+    sequence: u32,
+    opened: Instant,
+    bytes: u64,
+    path: PathBuf,
+}
+
+const TOPICS: [(&str, &str); 6] = [
+    ("/ember/cloud", "sensor_msgs/msg/PointCloud2"),
+    ("/ember/cloud_pose", "geometry_msgs/msg/PoseStamped"),
+    ("/ember/joints", "sensor_msgs/msg/JointState"),
+    ("/ember/objects", "ember_msgs/msg/ObjectUpdate"),
+    ("/ember/plan_request", "ember_msgs/msg/PlanRequest"),
+    ("/ember/plan_response", "ember_msgs/msg/PlanResponse"),
+];
+
+impl SessionWriter {
+    fn open(path: &Path, options: &RecorderOptions) -> anyhow::Result<Self> {
+        let file = std::fs::File::create(path)
+            .map_err(|e| anyhow::anyhow!("cannot create {}: {e}", path.display()))?;
+        let mut writer = mcap::WriteOptions::new()
+            .compression(Some(mcap::Compression::Zstd))
+            .chunk_size(Some(options.chunk_bytes))
+            .profile("ros2")
+            .library("ember")
+            .create(BufWriter::new(file))
+            .map_err(|e| anyhow::anyhow!("cannot start {}: {e}", path.display()))?;
+        let schemas: BTreeMap<&str, String> = messages::schemas().into_iter().collect();
+        let mut channels = BTreeMap::new();
+        for (topic, ty) in TOPICS {
+            let schema = writer.add_schema(ty, "ros2msg", schemas[ty].as_bytes())?;
+            channels.insert(
+                topic,
+                writer.add_channel(schema, topic, "cdr", &BTreeMap::new())?,
+            );
+        }
+        info!("recording to {}", path.display());
+        Ok(SessionWriter {
+            writer,
+            channels,
+            sequence: 0,
+            opened: Instant::now(),
+            bytes: 0,
+            path: path.to_path_buf(),
+        })
+    }
+
+    fn write(
+        &mut self,
+        topic: &'static str,
+        log_ns: u64,
+        publish_ns: u64,
+        data: &[u8],
+    ) -> anyhow::Result<()> {
+        self.sequence += 1;
+        let header = mcap::records::MessageHeader {
+            channel_id: self.channels[topic],
+            sequence: self.sequence,
+            log_time: log_ns,
+            publish_time: publish_ns,
+        };
+        self.writer.write_to_known_channel(&header, data)?;
+        self.bytes += data.len() as u64;
+        Ok(())
+    }
+
+    fn finish(mut self) {
+        if let Err(e) = self.writer.finish() {
+            error!("closing {} failed: {e}", self.path.display());
+        }
+    }
+}
+
+fn header(stamp_ns: u64, frame: &str) -> Header {
+    Header {
+        stamp: Time::from_ns(stamp_ns),
+        frame_id: frame.into(),
+    }
+}
+
+fn write_record(w: &mut SessionWriter, r: Record) -> anyhow::Result<u64> {
+    let mut n = 0;
+    match r {
+        Record::Cloud {
+            recv_ns,
+            stamp_ns,
+            frame_id,
+            pose,
+            points,
+        } => {
+            let cloud = messages::PointCloud2::xyz(header(stamp_ns, &frame_id), &points);
+            let data = encode(&cloud);
+            w.write("/ember/cloud", recv_ns, stamp_ns, &data)?;
+            let ps = messages::PoseStamped {
+                header: header(stamp_ns, "base_link"),
+                pose: messages::Pose::from_wire(pose),
+            };
+            w.write("/ember/cloud_pose", recv_ns, stamp_ns, &encode(&ps))?;
+            n += data.len() as u64;
+        }
+        Record::Joints {
+            recv_ns,
+            stamp_ns,
+            names,
+            positions,
+        } => {
+            let js = messages::JointState {
+                header: header(stamp_ns, "base_link"),
+                name: names,
+                position: positions,
+                velocity: vec![],
+                effort: vec![],
+            };
+            w.write("/ember/joints", recv_ns, stamp_ns, &encode(&js))?;
+        }
+        Record::Object { recv_ns, update } => {
+            let stamp = update.header.stamp.ns();
+            w.write("/ember/objects", recv_ns, stamp, &encode(&update))?;
+        }
+        Record::PlanRequest { recv_ns, request } => {
+            w.write("/ember/plan_request", recv_ns, recv_ns, &encode(&request))?;
+        }
+        Record::PlanResponse { recv_ns, response } => {
+            w.write("/ember/plan_response", recv_ns, recv_ns, &encode(&response))?;
+        }
+    }
+    Ok(n)
+}
+
+fn run(
+    rx: Receiver<Record>,
+    first: SessionWriter,
+    options: RecorderOptions,
+    stats: Arc<RecorderStats>,
+) {
+    let mut writer = first;
+    let mut index = 0;
+    let mut last_flush = Instant::now();
+    loop {
+        match rx.recv_timeout(Duration::from_millis(200)) {
+            Ok(r) => match write_record(&mut writer, r) {
+                Ok(bytes) => {
+                    stats.written.fetch_add(1, Ordering::Relaxed);
+                    stats.bytes.fetch_add(bytes, Ordering::Relaxed);
+                }
+                Err(e) => {
+                    error!("recording failed: {e}");
+                    stats.dropped.fetch_add(1, Ordering::Relaxed);
+                }
+            },
+            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
+            Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => break,
+        }
+        // Finish a chunk at least every second: what a crash leaves behind stays readable.
+        if last_flush.elapsed() >= Duration::from_secs(1) {
+            if let Err(e) = writer.writer.flush() {
+                error!("flushing the recording failed: {e}");
+            }
+            last_flush = Instant::now();
+        }
+        if writer.bytes >= options.max_file_bytes
+            || writer.opened.elapsed() >= options.max_file_duration
+        {
+            index += 1;
+            match SessionWriter::open(&file_name(&options.dir, index), &options) {
+                Ok(next) => std::mem::replace(&mut writer, next).finish(),
+                Err(e) => error!("cannot rotate the recording: {e:#}"),
+            }
+        }
+    }
+    writer.finish();
+}

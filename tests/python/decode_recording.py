@@ -1,0 +1,42 @@
+"""Decodes every message of an Ember session recording with the Python `mcap` and
+`mcap-ros2-support` packages: readers no one on the Ember team wrote.
+
+Usage: python decode_recording.py FILE.mcap
+Exits non-zero when a message does not decode or an expected topic is missing.
+"""
+import sys
+
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+
+EXPECTED = {
+    "/ember/cloud": "sensor_msgs/msg/PointCloud2",
+    "/ember/cloud_pose": "geometry_msgs/msg/PoseStamped",
+    "/ember/joints": "sensor_msgs/msg/JointState",
+    "/ember/objects": "ember_msgs/msg/ObjectUpdate",
+    "/ember/plan_request": "ember_msgs/msg/PlanRequest",
+    "/ember/plan_response": "ember_msgs/msg/PlanResponse",
+}
+
+
+def main(path):
+    counts = {}
+    with open(path, "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        for schema, channel, message, decoded in reader.iter_decoded_messages():
+            assert EXPECTED.get(channel.topic) == schema.name, (channel.topic, schema.name)
+            counts[channel.topic] = counts.get(channel.topic, 0) + 1
+            if channel.topic == "/ember/cloud":
+                assert decoded.width * decoded.height * decoded.point_step == len(decoded.data)
+            if channel.topic == "/ember/plan_response" and decoded.status == 0:
+                assert len(decoded.path) == decoded.waypoints * decoded.dof > 0
+            if channel.topic == "/ember/joints":
+                assert len(decoded.name) == len(decoded.position) == 8
+    missing = [t for t in EXPECTED if t not in counts]
+    assert not missing, f"topics missing from {path}: {missing}"
+    total = sum(counts.values())
+    print(f"decoded {total} messages on {len(counts)} topics with mcap + mcap-ros2-support: OK")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1])
