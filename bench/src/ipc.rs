@@ -50,6 +50,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             config.to_str().unwrap(),
             "--db-dir",
             dir.to_str().unwrap(),
+            "--record-dir",
+            dir.join("recordings").to_str().unwrap(),
         ])
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
@@ -60,14 +62,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         line.starts_with("emberd ready"),
         "daemon did not start: {line}"
     );
-    let result = measure(&instance, &args);
+    let result = measure(&instance, &args, &dir.join("recordings"));
     let _ = child.kill();
     let _ = child.wait();
     std::fs::remove_dir_all(&dir).ok();
     result
 }
 
-fn measure(instance: &str, args: &Args) -> anyhow::Result<()> {
+fn measure(instance: &str, args: &Args, recordings: &std::path::Path) -> anyhow::Result<()> {
     let client = Client::connect(instance)?;
     let t = Duration::from_secs(10);
     // Clouds: a wall 1.5 m ahead, 640×480 points, one every 50 ms.
@@ -96,6 +98,51 @@ fn measure(instance: &str, args: &Args) -> anyhow::Result<()> {
     }
     let s = client.status(t)?;
     let (cloud_p50, cloud_p99) = (s.cloud_latency_p50_us, s.cloud_latency_p99_us);
+
+    // Recording under load: a burst of clouds as fast as the daemon takes them.
+    let before = client.status(t)?;
+    let burst = Instant::now();
+    for k in 0..args.clouds {
+        client.publish_cloud(
+            "head_camera",
+            [0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            0,
+            n,
+            |i| Point {
+                x: 1.5 + (k % 3) as f32 * 0.01,
+                y: -0.8 + (i % 640) as f32 * 0.0025,
+                z: -0.6 + (i / 640) as f32 * 0.0025,
+            },
+        )?;
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let deadline = Instant::now() + Duration::from_secs(60);
+    let after = loop {
+        let s = client.status(t)?;
+        if s.recorded + s.recording_dropped >= before.recorded + s.clouds - before.clouds
+            || Instant::now() > deadline
+        {
+            break s;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let secs = burst.elapsed().as_secs_f64();
+    let taken = after.clouds - before.clouds;
+    let written = after.recorded - before.recorded;
+    let dropped = after.recording_dropped - before.recording_dropped;
+    let disk: u64 = std::fs::read_dir(recordings)?
+        .flatten()
+        .filter_map(|e| e.metadata().ok())
+        .map(|m| m.len())
+        .sum();
+    let per_cloud = disk as f64 / (s.clouds + taken).max(1) as f64;
+    println!(
+        "recording under load: {taken} clouds taken in {secs:.1} s ({:.1} clouds/s, {:.0} MB/s raw), {written} recorded, {dropped} dropped; {:.2} MB on disk per cloud (zstd) = {:.0} MB per minute at 30 Hz",
+        taken as f64 / secs,
+        taken as f64 * n as f64 * 12.0 / 1e6 / secs,
+        per_cloud / 1e6,
+        per_cloud * 30.0 * 60.0 / 1e6
+    );
 
     // Plans: an empty world (the map is not an obstacle by default).
     let robot = Robot::builtin("fetch")?;

@@ -183,16 +183,6 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
             let values: &[f64] = active.payload();
             let recv_ns = ember_sdk::client::now_ns();
             let a = plan::answer(&config, &robot, &snapshot, &mut experience, &h, values);
-            if let Some(r) = &recorder {
-                r.record(Record::PlanRequest {
-                    recv_ns,
-                    request: plan::request_message(recv_ns, &h, values),
-                });
-                r.record(Record::PlanResponse {
-                    recv_ns: ember_sdk::client::now_ns(),
-                    response: plan::response_message(recv_ns, &a),
-                });
-            }
             {
                 let mut st = stats.inner.lock().expect("stats lock");
                 st.plans += 1;
@@ -214,6 +204,17 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
                     }
                 }
                 Err(e) => warn!("loaning a plan response failed: {e:?}"),
+            }
+            // Recorded after the reply is out: recording never delays an answer.
+            if let Some(r) = &recorder {
+                r.record(Record::PlanRequest {
+                    recv_ns,
+                    request: plan::request_message(recv_ns, &h, values),
+                });
+                r.record(Record::PlanResponse {
+                    recv_ns: ember_sdk::client::now_ns(),
+                    response: plan::response_message(recv_ns, &a),
+                });
             }
         }
         while let Ok(Some(active)) = status_server.receive() {
