@@ -278,16 +278,18 @@ fn load(path: &Path) -> Result<(u8, Vec<u8>), DbError> {
     Ok((kind, payload.to_vec()))
 }
 
-fn expect_kind(path: &Path, found: u8, expected: u8) -> Result<(), DbError> {
-    if found == expected {
-        Ok(())
-    } else {
-        Err(DbError::WrongKind {
-            path: path.display().to_string(),
+/// Reads and checks a file of kind `expected`; returns its payload and the path as text.
+fn load_kind(path: &Path, expected: u8) -> Result<(Vec<u8>, String), DbError> {
+    let (found, payload) = load(path)?;
+    let p = path.display().to_string();
+    if found != expected {
+        return Err(DbError::WrongKind {
+            path: p,
             expected: kind_name(expected),
             found: kind_name(found),
-        })
+        });
     }
+    Ok((payload, p))
 }
 
 fn dof_of<'a>(mut values: impl Iterator<Item = &'a Vec<Vec<f64>>>) -> usize {
@@ -314,10 +316,7 @@ impl SparkDb {
 
     /// Loads a database saved by [`SparkDb::save`].
     pub fn load(path: impl AsRef<Path>) -> Result<SparkDb, DbError> {
-        let path = path.as_ref();
-        let (kind, payload) = load(path)?;
-        expect_kind(path, kind, KIND_SPARK)?;
-        let p = path.display().to_string();
+        let (payload, p) = load_kind(path.as_ref(), KIND_SPARK)?;
         let mut r = Reader {
             data: &payload,
             pos: 0,
@@ -369,10 +368,7 @@ impl FlameDb {
 
     /// Loads a database saved by [`FlameDb::save`].
     pub fn load(path: impl AsRef<Path>) -> Result<FlameDb, DbError> {
-        let path = path.as_ref();
-        let (kind, payload) = load(path)?;
-        expect_kind(path, kind, KIND_FLAME)?;
-        let p = path.display().to_string();
+        let (payload, p) = load_kind(path.as_ref(), KIND_FLAME)?;
         let mut r = Reader {
             data: &payload,
             pos: 0,
