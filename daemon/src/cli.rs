@@ -21,6 +21,8 @@ pub enum Command {
     Problems(ProblemsArgs),
     /// Run pick episodes in varied shelf scenes and print a summary.
     Demo(DemoArgs),
+    /// Feed recorded sessions (MCAP) into a running daemon; with --check, compare the plans.
+    Replay(ReplayArgs),
 }
 
 #[derive(Debug, Args)]
@@ -100,4 +102,23 @@ pub struct RunArgs {
     /// Do not record this session.
     #[arg(long)]
     pub no_record: bool,
+}
+
+#[derive(Debug, Args)]
+pub struct ReplayArgs {
+    /// Recording files, replayed in order.
+    #[arg(required = true)]
+    pub files: Vec<PathBuf>,
+    /// Instance of the running daemon to feed.
+    #[arg(long, default_value = "default")]
+    pub instance: String,
+    /// Replay at this multiple of real time (default: as fast as possible).
+    #[arg(long)]
+    pub speed: Option<f64>,
+    /// Compare each plan reply with the recorded one; exit 1 on a difference.
+    #[arg(long)]
+    pub check: bool,
+    /// Replay what is intact of a damaged file instead of refusing it.
+    #[arg(long)]
+    pub allow_truncated: bool,
 }

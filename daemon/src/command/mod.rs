@@ -3,6 +3,7 @@
 mod demo;
 mod plan;
 mod problems;
+mod replay;
 mod run;
 
 use crate::cli::{Cli, Command};
@@ -15,6 +16,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Plan(a) => plan::run(a),
         Command::Problems(a) => problems::run(a),
         Command::Demo(a) => demo::run(a),
+        Command::Replay(a) => replay::run(a),
     }
 }
 

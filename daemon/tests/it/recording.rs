@@ -128,3 +128,119 @@ fn a_killed_daemon_leaves_its_complete_chunks_readable() {
     let (counts, _error) = topics(&bytes);
     assert_eq!(counts.get("/ember/objects"), Some(&3), "{counts:?}");
 }
+
+#[test]
+fn replaying_a_session_reproduces_its_plans() {
+    // Record a session: a table, a joint state, a cloud and two plans.
+    let a = Daemon::start("rec-a");
+    let client = a.client();
+    publish_table(&client);
+    client.publish_joints(&TUCK).unwrap();
+    client
+        .publish_cloud(
+            "head_camera",
+            [0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            0,
+            2000,
+            |i| Point {
+                x: 1.4,
+                y: (i % 50) as f32 * 0.01,
+                z: (i / 50) as f32 * 0.01,
+            },
+        )
+        .unwrap();
+    wait_for(&client, "inputs", |s| s.world_objects == 3 && s.clouds == 1);
+    for seed in [11, 12] {
+        let call = PlanCall {
+            start: TUCK.to_vec(),
+            goals: vec![FREE_GOAL.to_vec()],
+            pose: None,
+            method: Method::Uniform,
+            time_limit_s: 10.0,
+            seed,
+        };
+        assert_eq!(
+            client.plan(&call, Duration::from_secs(20)).unwrap().status,
+            Status::Ok
+        );
+    }
+    wait_for(&client, "the recorder", |s| s.recorded >= 9);
+    drop(client);
+    a.signal("-TERM");
+    let mut a = a;
+    assert!(a.child.wait().unwrap().success());
+
+    // Replay it into a fresh daemon: same world, same seeds, same paths.
+    let b = Daemon::start("rec-b");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_ember"))
+        .args([
+            "replay",
+            a.recording.to_str().unwrap(),
+            "--instance",
+            &b.instance,
+            "--check",
+        ])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.contains("plans reproduced: 2/2"), "{text}");
+    let s = b.client().status(Duration::from_secs(2)).unwrap();
+    assert_eq!(
+        (s.world_objects, s.clouds, s.joint_states),
+        (3, 1, 1),
+        "{s:?}"
+    );
+
+    // A damaged file is refused with a sentence naming it, or replayed up to the damage on request.
+    let bytes = std::fs::read(&a.recording).unwrap();
+    let cut = a.db_dir.join("cut.mcap");
+    std::fs::write(&cut, &bytes[..bytes.len() * 2 / 3]).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_ember"))
+        .args(["replay", cut.to_str().unwrap(), "--instance", &b.instance])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("cut.mcap") && err.contains("--allow-truncated"),
+        "{err}"
+    );
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_ember"))
+        .args([
+            "replay",
+            cut.to_str().unwrap(),
+            "--instance",
+            &b.instance,
+            "--allow-truncated",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let foreign = a.db_dir.join("foreign.mcap");
+    std::fs::write(&foreign, b"this is not an mcap file").unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_ember"))
+        .args([
+            "replay",
+            foreign.to_str().unwrap(),
+            "--instance",
+            &b.instance,
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.code() == Some(2)
+            && err.contains("foreign.mcap")
+            && err.contains("not a readable MCAP"),
+        "{err}"
+    );
+}
