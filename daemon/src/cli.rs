@@ -23,6 +23,8 @@ pub enum Command {
     Demo(DemoArgs),
     /// Feed recorded sessions (MCAP) into a running daemon; with --check, compare the plans.
     Replay(ReplayArgs),
+    /// Extend the experience databases from the solved plans of recorded sessions.
+    Train(TrainArgs),
 }
 
 #[derive(Debug, Args)]
@@ -121,4 +123,20 @@ pub struct ReplayArgs {
     /// Replay what is intact of a damaged file instead of refusing it.
     #[arg(long)]
     pub allow_truncated: bool,
+}
+
+#[derive(Debug, Args)]
+pub struct TrainArgs {
+    /// Recording files.
+    #[arg(required = true)]
+    pub files: Vec<PathBuf>,
+    /// Experience database folder (spark.emberdb, flame.emberdb), created or extended.
+    #[arg(long)]
+    pub db: PathBuf,
+    /// Daemon configuration the sessions ran with (robot, map settings).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Also test path states every STEP for criticality.
+    #[arg(long)]
+    pub interpolate: Option<f64>,
 }

@@ -5,6 +5,7 @@ mod plan;
 mod problems;
 mod replay;
 mod run;
+mod train;
 
 use crate::cli::{Cli, Command};
 use std::process::ExitCode;
@@ -17,6 +18,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Problems(a) => problems::run(a),
         Command::Demo(a) => demo::run(a),
         Command::Replay(a) => replay::run(a),
+        Command::Train(a) => train::run(a),
     }
 }
 

@@ -22,7 +22,7 @@ use tracing::warn;
 /// Shared handle to the latest snapshot.
 pub type SnapshotCell = Arc<Mutex<Arc<Snapshot>>>;
 
-fn object_of(u: &wire::ObjectUpdate) -> Result<Option<Object>, String> {
+pub fn object_of(u: &wire::ObjectUpdate) -> Result<Option<Object>, String> {
     let id = wire::name_str(&u.id);
     if id.is_empty() {
         return Err("object update without an id".into());

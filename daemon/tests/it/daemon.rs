@@ -130,6 +130,23 @@ pub fn wait_for(
     }
 }
 
+/// A collision-free configuration with the hand right behind the can on the fixture's table.
+pub fn goal_near_can() -> Vec<f64> {
+    let robot = Robot::builtin("fetch").unwrap();
+    let env = table_scene().environment().unwrap();
+    let mut checker = ember_engine::collision::SphereChecker::new(&robot, &env);
+    let goal = ember_engine::planning::PoseGoal {
+        link: None,
+        pose: ember_engine::Pose::translation(0.66, 0.1, 0.86),
+        position_tolerance: 0.005,
+        orientation_tolerance: 0.05,
+    };
+    let mut rng = <ember_engine::planning::PlannerRng as rand::SeedableRng>::seed_from_u64(8);
+    ember_engine::planning::ik::solve(&mut checker, &goal, None, &Default::default(), &mut rng)
+        .unwrap()[0]
+        .clone()
+}
+
 fn call(goal: [f64; 8]) -> PlanCall {
     PlanCall {
         start: TUCK.to_vec(),
@@ -315,21 +332,8 @@ fn sigterm_saves_the_database_and_sigkill_allows_an_immediate_restart() {
     publish_table(&client);
     wait_for(&client, "objects", |s| s.world_objects == 3);
     // Learning online from a solved plan that ends with the hand next to the can on the table.
-    let robot = Robot::builtin("fetch").unwrap();
-    let env = table_scene().environment().unwrap();
-    let mut checker = ember_engine::collision::SphereChecker::new(&robot, &env);
-    let goal = ember_engine::planning::PoseGoal {
-        link: None,
-        pose: ember_engine::Pose::translation(0.66, 0.1, 0.86),
-        position_tolerance: 0.005,
-        orientation_tolerance: 0.05,
-    };
-    let mut rng = <ember_engine::planning::PlannerRng as rand::SeedableRng>::seed_from_u64(8);
-    let ik =
-        ember_engine::planning::ik::solve(&mut checker, &goal, None, &Default::default(), &mut rng)
-            .unwrap();
     let mut near = call(FREE_GOAL);
-    near.goals = vec![ik[0].clone()];
+    near.goals = vec![goal_near_can()];
     let r = client.plan(&near, Duration::from_secs(20)).unwrap();
     assert_eq!(r.status, Status::Ok, "{}", r.message());
     drop(client);

@@ -1,7 +1,7 @@
 //! Session recording: every input and answer lands in an MCAP file readable by standard tools,
 //! and a daemon killed mid-recording leaves its complete chunks readable.
 
-use crate::daemon::{publish_table, wait_for, Daemon, FREE_GOAL, TUCK};
+use crate::daemon::{goal_near_can, publish_table, wait_for, Daemon, FREE_GOAL, TUCK};
 use ember_sdk::recording;
 use ember_sdk::wire::{Method, Point};
 use ember_sdk::{PlanCall, Status};
@@ -243,4 +243,73 @@ fn replaying_a_session_reproduces_its_plans() {
             && err.contains("not a readable MCAP"),
         "{err}"
     );
+}
+
+#[test]
+fn training_from_a_recording_fills_the_databases() {
+    let d = Daemon::start("train");
+    let client = d.client();
+    publish_table(&client);
+    client.publish_joints(&TUCK).unwrap();
+    // The back of the can seen from behind the robot (optical z along +x): occupied voxels right
+    // where the hand ends, for FLAME.
+    client
+        .publish_cloud(
+            "head_camera",
+            [0.0, 0.1, 0.8, -0.5, 0.5, -0.5, 0.5],
+            0,
+            1600,
+            |i| {
+                let (y, z) = (
+                    0.07 + 0.0015 * (i % 40) as f32,
+                    0.72 + 0.003 * (i / 40) as f32,
+                );
+                Point {
+                    x: -(y - 0.1),
+                    y: -(z - 0.8),
+                    z: 0.865,
+                }
+            },
+        )
+        .unwrap();
+    wait_for(&client, "inputs", |s| s.world_objects == 3 && s.clouds == 1);
+    let call = PlanCall {
+        start: TUCK.to_vec(),
+        goals: vec![goal_near_can()],
+        pose: None,
+        method: Method::Uniform,
+        time_limit_s: 10.0,
+        seed: 2,
+    };
+    assert_eq!(
+        client.plan(&call, Duration::from_secs(20)).unwrap().status,
+        Status::Ok
+    );
+    wait_for(&client, "the recorder", |s| s.recorded >= 7);
+    drop(client);
+    d.signal("-TERM");
+    let mut d = d;
+    assert!(d.child.wait().unwrap().success());
+
+    let db = d.db_dir.join("trained");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_ember"))
+        .args([
+            "train",
+            d.recording.to_str().unwrap(),
+            "--db",
+            db.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.starts_with("learned from 1 solved plans"), "{text}");
+    let spark = ember_engine::experience::SparkDb::load(db.join("spark.emberdb")).unwrap();
+    let flame = ember_engine::experience::FlameDb::load(db.join("flame.emberdb")).unwrap();
+    assert!(!spark.is_empty(), "{text}");
+    assert!(!flame.is_empty(), "{text}");
 }
