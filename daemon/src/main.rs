@@ -5,6 +5,7 @@ mod command;
 mod config;
 mod recorder;
 mod service;
+mod session;
 mod world;
 
 use clap::Parser;

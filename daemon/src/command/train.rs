@@ -6,12 +6,12 @@
 use crate::cli::TrainArgs;
 use crate::config::Config;
 use crate::service::ingest::object_of;
+use crate::session::{Event, Session};
 use crate::world::World;
 use ember_engine::experience::train::learn;
 use ember_engine::experience::{ExperienceParams, FlameDb, SparkDb};
 use ember_engine::scene::pose_from_xyz_xyzw;
-use ember_sdk::recording::{self, PlanResponse, PointCloud2, PoseStamped};
-use ember_sdk::wire::{self, ObjectUpdate, PROTOCOL_VERSION};
+use ember_sdk::wire;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::process::ExitCode;
 
@@ -33,111 +33,66 @@ pub fn run(args: TrainArgs) -> anyhow::Result<ExitCode> {
     let (spark0, flame0) = (spark.len(), flame.len());
     let mut plans = 0usize;
     for file in &args.files {
-        let bytes = std::fs::read(file)
-            .map_err(|e| anyhow::anyhow!("cannot read {}: {e}", file.display()))?;
-        if !bytes.starts_with(mcap::MAGIC) {
-            anyhow::bail!(
-                "{}: not a readable MCAP file (no MCAP magic at the start)",
-                file.display()
-            );
-        }
-        let total = mcap::Summary::read(&bytes)
-            .ok()
-            .flatten()
-            .and_then(|s| s.stats)
-            .map_or(0, |s| s.message_count);
-        let bar = ProgressBar::new(total).with_style(
-            ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} messages")
+        let session = Session::open(file)?;
+        let bar = ProgressBar::new(session.message_count().unwrap_or(0)).with_style(
+            ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} events")
                 .expect("valid template"),
         );
         bar.set_message(file.display().to_string());
         let mut world = World::new(&config);
-        let mut pending_cloud: Option<PointCloud2> = None;
-        for message in mcap::MessageStream::new(&bytes)? {
-            let m = match message {
-                Ok(m) => m,
-                Err(e) => {
-                    bar.println(format!(
-                        "{}: stopping at damaged data ({e})",
-                        file.display()
-                    ));
-                    break;
-                }
-            };
+        let read = session.for_each(true, |_, event| {
             bar.inc(1);
-            let bad = |e: String| {
-                anyhow::anyhow!(
-                    "{}: {} message {}: {e}",
-                    file.display(),
-                    m.channel.topic,
-                    m.sequence
-                )
-            };
-            match m.channel.topic.as_str() {
-                "/ember/objects" => {
-                    let o: recording::ObjectUpdate = recording::decode(&m.data).map_err(bad)?;
-                    let u = ObjectUpdate {
-                        version: PROTOCOL_VERSION,
-                        shape: o.shape,
-                        stamp_ns: 0,
-                        id: wire::name(&o.id),
-                        dims: o.dims,
-                        pose: o.pose.to_wire(),
-                    };
-                    match object_of(&u) {
-                        Ok(Some(obj)) => world.upsert_object(obj),
-                        Ok(None) => {
-                            world.remove_object(&o.id);
-                        }
-                        Err(_) => {} // The daemon rejected it too.
+            match event {
+                Event::Object(u) => match object_of(&u) {
+                    Ok(Some(obj)) => world.upsert_object(obj),
+                    Ok(None) => {
+                        world.remove_object(&wire::name_str(&u.id));
+                    }
+                    Err(_) => {} // The daemon rejected it too.
+                },
+                Event::Joints(q) => {
+                    if robot.validate(&q).is_ok() {
+                        world.set_joints(q);
                     }
                 }
-                "/ember/joints" => {
-                    let js: recording::JointState = recording::decode(&m.data).map_err(bad)?;
-                    if robot.validate(&js.position).is_ok() {
-                        world.set_joints(js.position);
-                    }
-                }
-                "/ember/cloud" => pending_cloud = Some(recording::decode(&m.data).map_err(bad)?),
-                "/ember/cloud_pose" => {
-                    let pose: PoseStamped = recording::decode(&m.data).map_err(bad)?;
-                    if let Some(cloud) = pending_cloud
-                        .take()
-                        .filter(|c| c.header.stamp == pose.header.stamp)
+                Event::Cloud {
+                    pose: p, points, ..
+                } => {
+                    if let Some(sensor) =
+                        pose_from_xyz_xyzw([p[0], p[1], p[2]], [p[3], p[4], p[5], p[6]])
                     {
-                        let p = pose.pose.to_wire();
-                        if let (Some(points), Some(sensor)) = (
-                            cloud.xyz_points(),
-                            pose_from_xyz_xyzw([p[0], p[1], p[2]], [p[3], p[4], p[5], p[6]]),
-                        ) {
-                            world.insert_cloud(&robot, &points, &sensor);
-                        }
+                        world.insert_cloud(&robot, &points, &sensor);
                     }
                 }
-                "/ember/plan_response" => {
-                    let r: PlanResponse = recording::decode(&m.data).map_err(bad)?;
+                Event::PlanResponse(r) => {
                     let dof = r.dof as usize;
-                    if r.status != 0 || dof != robot.dof() || r.path.is_empty() {
-                        continue;
+                    if r.status == 0 && dof == robot.dof() && !r.path.is_empty() {
+                        let path: Vec<Vec<f64>> =
+                            r.path.chunks_exact(dof).map(<[f64]>::to_vec).collect();
+                        let snap = world.snapshot();
+                        learn(
+                            &robot,
+                            &snap.scene,
+                            Some(&snap.map),
+                            &path,
+                            args.interpolate,
+                            &mut spark,
+                            Some(&mut flame),
+                        );
+                        plans += 1;
                     }
-                    let path: Vec<Vec<f64>> =
-                        r.path.chunks_exact(dof).map(<[f64]>::to_vec).collect();
-                    let snap = world.snapshot();
-                    learn(
-                        &robot,
-                        &snap.scene,
-                        Some(&snap.map),
-                        &path,
-                        args.interpolate,
-                        &mut spark,
-                        Some(&mut flame),
-                    );
-                    plans += 1;
                 }
-                _ => {}
+                Event::PlanRequest(_) => {}
             }
-        }
+            Ok(())
+        })?;
         bar.finish_and_clear();
+        if session.message_count().is_some_and(|n| (read as u64) < n) {
+            eprintln!(
+                "{}: damaged after {read} messages; learned from what came before",
+                file.display()
+            );
+        }
     }
     spark.save(&spark_path)?;
     flame.save(&flame_path)?;
