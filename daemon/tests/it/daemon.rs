@@ -86,7 +86,7 @@ impl Drop for Daemon {
     }
 }
 
-fn table_scene() -> Scene {
+pub fn table_scene() -> Scene {
     Scene::load(crate::fixtures().join("moveit/scene.yaml")).unwrap()
 }
 

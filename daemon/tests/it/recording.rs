@@ -313,3 +313,102 @@ fn training_from_a_recording_fills_the_databases() {
     assert!(!spark.is_empty(), "{text}");
     assert!(!flame.is_empty(), "{text}");
 }
+
+const FIXTURE: &str = "sessions/table_session.mcap";
+
+/// Regenerates the recorded fixture session: the table scene streamed by the simulated depth
+/// camera (320×240, from the head), the joint state, and three seeded plans. Run after a planner
+/// change that alters paths: `cargo test -p ember-daemon --test it -- --ignored regenerate`.
+#[test]
+#[ignore = "regenerates tests/fixtures/sessions/table_session.mcap"]
+fn regenerate_fixture_session() {
+    let d = Daemon::start("fixture");
+    let client = d.client();
+    publish_table(&client);
+    client.publish_joints(&TUCK).unwrap();
+    let env = crate::daemon::table_scene().environment().unwrap();
+    let mut camera = ember_sensors::DepthCamera::new(
+        ember_sensors::quarter_vga(),
+        ember_sensors::NoiseModel::default(),
+        1,
+    );
+    for (k, eye) in [[0.15, 0.0, 1.45], [0.15, 0.2, 1.45]].iter().enumerate() {
+        let frame = camera.render(&env, &ember_sensors::look_at(*eye, [1.0, 0.0, 0.75]));
+        let t = frame.sensor_pose.translation.vector;
+        let q = frame.sensor_pose.rotation.coords;
+        let pts = frame.points;
+        client
+            .publish_cloud(
+                "head_camera_depth_optical_frame",
+                [t.x, t.y, t.z, q.x, q.y, q.z, q.w],
+                0,
+                pts.len(),
+                |i| Point {
+                    x: pts[i][0],
+                    y: pts[i][1],
+                    z: pts[i][2],
+                },
+            )
+            .unwrap();
+        wait_for(&client, "the cloud", |s| s.clouds == k as u64 + 1);
+    }
+    for (seed, goal) in [
+        (1, FREE_GOAL.to_vec()),
+        (2, goal_near_can()),
+        (3, FREE_GOAL.to_vec()),
+    ] {
+        let call = PlanCall {
+            start: TUCK.to_vec(),
+            goals: vec![goal],
+            pose: None,
+            method: Method::Uniform,
+            time_limit_s: 10.0,
+            seed,
+        };
+        assert_eq!(
+            client.plan(&call, Duration::from_secs(20)).unwrap().status,
+            Status::Ok
+        );
+    }
+    wait_for(&client, "the recorder", |s| s.recorded >= 11);
+    drop(client);
+    d.signal("-TERM");
+    let mut d = d;
+    assert!(d.child.wait().unwrap().success());
+    let target = crate::fixtures().join(FIXTURE);
+    std::fs::create_dir_all(target.parent().unwrap()).unwrap();
+    std::fs::copy(&d.recording, &target).unwrap();
+}
+
+#[test]
+fn recorded_fixture_session_replays_as_recorded() {
+    let fixture = crate::fixtures().join(FIXTURE);
+    let d = Daemon::start("fixture-replay");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_ember"))
+        .args([
+            "replay",
+            fixture.to_str().unwrap(),
+            "--instance",
+            &d.instance,
+            "--check",
+        ])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.contains("plans reproduced: 3/3"), "{text}");
+    let s = d.client().status(Duration::from_secs(2)).unwrap();
+    assert_eq!(
+        (s.world_objects, s.clouds, s.joint_states),
+        (3, 2, 1),
+        "{s:?}"
+    );
+    assert!(
+        s.map_blocks > 100,
+        "the camera's view of the table is in the map: {s:?}"
+    );
+}
