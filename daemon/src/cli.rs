@@ -123,6 +123,12 @@ pub struct ReplayArgs {
     /// Replay what is intact of a damaged file instead of refusing it.
     #[arg(long)]
     pub allow_truncated: bool,
+    /// Robot the joint states belong to (built-in name or robot file).
+    #[arg(long, default_value = "fetch")]
+    pub robot: String,
+    /// Role of a foreign (ROS 2) bag topic: TOPIC=cloud|cloud_pose|joints|object:ID:SHAPE:D1,D2,D3 (repeat).
+    #[arg(long = "topic-map")]
+    pub topic_map: Vec<String>,
 }
 
 #[derive(Debug, Args)]
@@ -139,4 +145,7 @@ pub struct TrainArgs {
     /// Also test path states every STEP for criticality.
     #[arg(long)]
     pub interpolate: Option<f64>,
+    /// Role of a foreign (ROS 2) bag topic, as for `ember replay` (repeat).
+    #[arg(long = "topic-map")]
+    pub topic_map: Vec<String>,
 }

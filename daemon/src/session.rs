@@ -1,17 +1,100 @@
 //! Reading recorded sessions: the MCAP messages of a recording as typed events, in recorded
 //! order, with each cloud joined to its sensor pose. `ember replay` sends them to a daemon;
 //! `ember train` (and tests) rebuild the world from them in process.
+//!
+//! Ember's own recordings need no configuration. A ROS 2 bag is read through a [`TopicMap`]:
+//! `TOPIC=cloud` (`sensor_msgs/msg/PointCloud2`, x/y/z float32 fields at any offsets),
+//! `TOPIC=cloud_pose` (`geometry_msgs/msg/PoseStamped`: the sensor pose used for the clouds that
+//! follow), `TOPIC=joints` (`sensor_msgs/msg/JointState`, joints matched by name), and
+//! `TOPIC=object:ID:SHAPE:D1,D2,D3` (`geometry_msgs/msg/PoseStamped` of a tracked object with
+//! shape `box`, `cylinder`, `sphere` or `capsule` and its dimensions).
 
 use ember_sdk::recording::{self, PlanRequest, PlanResponse, PointCloud2, PoseStamped};
 use ember_sdk::wire::{self, ObjectUpdate, PROTOCOL_VERSION};
+use std::collections::HashMap;
 use std::path::Path;
+
+/// What a topic of a foreign bag stands for.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Role {
+    /// Point clouds.
+    Cloud,
+    /// The sensor pose of the clouds.
+    CloudPose,
+    /// Joint states.
+    Joints,
+    /// A tracked object: id, shape code, dimensions.
+    Object(String, u32, [f64; 3]),
+}
+
+/// Topic → role, for bags not written by Ember.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TopicMap(pub HashMap<String, Role>);
+
+impl TopicMap {
+    /// Parses `TOPIC=ROLE` entries (see the module docs); errors name the entry.
+    pub fn parse(entries: &[String]) -> anyhow::Result<TopicMap> {
+        let mut map = HashMap::new();
+        for e in entries {
+            let (topic, role) = e
+                .split_once('=')
+                .ok_or_else(|| anyhow::anyhow!("topic mapping '{e}': expected TOPIC=ROLE"))?;
+            let role = match role {
+                "cloud" => Role::Cloud,
+                "cloud_pose" => Role::CloudPose,
+                "joints" => Role::Joints,
+                r if r.starts_with("object:") => {
+                    let parts: Vec<&str> = r.splitn(4, ':').collect();
+                    let [_, id, shape, dims] = parts[..] else {
+                        anyhow::bail!("topic mapping '{e}': expected object:ID:SHAPE:D1,D2,D3");
+                    };
+                    let code = match shape {
+                        "box" => 1,
+                        "cylinder" => 2,
+                        "sphere" => 3,
+                        "capsule" => 4,
+                        other => anyhow::bail!("topic mapping '{e}': unknown shape '{other}' (box, cylinder, sphere, capsule)"),
+                    };
+                    let d: Vec<f64> = dims
+                        .split(',')
+                        .map(str::parse)
+                        .collect::<Result<_, _>>()
+                        .map_err(|_| anyhow::anyhow!("topic mapping '{e}': dimensions must be numbers"))?;
+                    let mut dims3 = [0.0; 3];
+                    for (o, v) in dims3.iter_mut().zip(&d) {
+                        *o = *v;
+                    }
+                    Role::Object(id.to_string(), code, dims3)
+                }
+                other => anyhow::bail!(
+                    "topic mapping '{e}': unknown role '{other}' (cloud, cloud_pose, joints, object:ID:SHAPE:D1,D2,D3)"
+                ),
+            };
+            map.insert(topic.to_string(), role);
+        }
+        Ok(TopicMap(map))
+    }
+
+    /// The role of `topic`: Ember's own topics first, then the mapping.
+    fn role(&self, topic: &str) -> Option<Role> {
+        match topic {
+            "/ember/cloud" => Some(Role::Cloud),
+            "/ember/cloud_pose" => Some(Role::CloudPose),
+            "/ember/joints" => Some(Role::Joints),
+            _ => self.0.get(topic).cloned(),
+        }
+    }
+}
 
 /// One recorded event.
 pub enum Event {
     /// An object update, in wire form.
     Object(ObjectUpdate),
-    /// Joint positions (planning group).
-    Joints(Vec<f64>),
+    /// Joint positions with their names (empty names: already in planning-group order).
+    Joints {
+        names: Vec<String>,
+        positions: Vec<f64>,
+    },
     /// A cloud with its sensor pose (wire form `[x, y, z, qx, qy, qz, qw]`).
     Cloud {
         frame_id: String,
@@ -63,22 +146,29 @@ impl Session {
     pub fn for_each(
         &self,
         lenient: bool,
+        topics: &TopicMap,
         mut f: impl FnMut(u64, Event) -> anyhow::Result<()>,
     ) -> anyhow::Result<usize> {
         let mut read = 0usize;
         let mut pending_cloud: Option<PointCloud2> = None;
+        // In foreign bags a cloud uses the latest sensor pose; Ember's pair up by stamp.
+        let mut sensor_pose: Option<[f64; 7]> = None;
         for message in mcap::MessageStream::new(&self.bytes)? {
             let m = match message {
                 Ok(m) => m,
                 Err(_) if lenient => break,
-                Err(e) => anyhow::bail!("{}: damaged after {read} messages: {e} (use --allow-truncated to use what is intact)", self.path),
+                Err(e) => anyhow::bail!(
+                    "{}: damaged after {read} messages: {e} (use --allow-truncated to use what is intact)",
+                    self.path
+                ),
             };
             read += 1;
             let topic = m.channel.topic.as_str();
             let bad =
                 |e: String| anyhow::anyhow!("{}: {topic} message {}: {e}", self.path, m.sequence);
-            let event = match topic {
-                "/ember/objects" => {
+            let ember = topic.starts_with("/ember/");
+            let event = match (topic, topics.role(topic)) {
+                ("/ember/objects", _) => {
                     let o: recording::ObjectUpdate = recording::decode(&m.data).map_err(bad)?;
                     Event::Object(ObjectUpdate {
                         version: PROTOCOL_VERSION,
@@ -89,16 +179,41 @@ impl Session {
                         pose: o.pose.to_wire(),
                     })
                 }
-                "/ember/joints" => {
+                ("/ember/plan_request", _) => {
+                    Event::PlanRequest(recording::decode(&m.data).map_err(bad)?)
+                }
+                ("/ember/plan_response", _) => {
+                    Event::PlanResponse(recording::decode(&m.data).map_err(bad)?)
+                }
+                (_, Some(Role::Joints)) => {
                     let js: recording::JointState = recording::decode(&m.data).map_err(bad)?;
-                    Event::Joints(js.position)
+                    Event::Joints {
+                        names: js.name,
+                        positions: js.position,
+                    }
                 }
-                "/ember/cloud" => {
-                    pending_cloud = Some(recording::decode(&m.data).map_err(bad)?);
-                    continue;
+                (_, Some(Role::Cloud)) => {
+                    let cloud: PointCloud2 = recording::decode(&m.data).map_err(bad)?;
+                    if ember {
+                        pending_cloud = Some(cloud);
+                        continue;
+                    }
+                    let Some(pose) = sensor_pose else {
+                        continue; // No sensor pose seen yet: the cloud cannot be placed.
+                    };
+                    let points = cloud
+                        .xyz_points()
+                        .ok_or_else(|| bad("cloud without float32 x, y, z".into()))?;
+                    Event::Cloud {
+                        frame_id: cloud.header.frame_id,
+                        stamp_ns: cloud.header.stamp.ns(),
+                        pose,
+                        points,
+                    }
                 }
-                "/ember/cloud_pose" => {
+                (_, Some(Role::CloudPose)) => {
                     let pose: PoseStamped = recording::decode(&m.data).map_err(bad)?;
+                    sensor_pose = Some(pose.pose.to_wire());
                     let Some(cloud) = pending_cloud
                         .take()
                         .filter(|c| c.header.stamp == pose.header.stamp)
@@ -115,11 +230,16 @@ impl Session {
                         points,
                     }
                 }
-                "/ember/plan_request" => {
-                    Event::PlanRequest(recording::decode(&m.data).map_err(bad)?)
-                }
-                "/ember/plan_response" => {
-                    Event::PlanResponse(recording::decode(&m.data).map_err(bad)?)
+                (_, Some(Role::Object(id, shape, dims))) => {
+                    let pose: PoseStamped = recording::decode(&m.data).map_err(bad)?;
+                    Event::Object(ObjectUpdate {
+                        version: PROTOCOL_VERSION,
+                        shape,
+                        stamp_ns: pose.header.stamp.ns(),
+                        id: wire::name(&id),
+                        dims,
+                        pose: pose.pose.to_wire(),
+                    })
                 }
                 _ => continue,
             };

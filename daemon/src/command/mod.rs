@@ -27,3 +27,25 @@ pub fn load_robot(spec: &str) -> anyhow::Result<ember_engine::robot::Robot> {
     ember_engine::robot::Robot::from_spec(spec)
         .map_err(|e| anyhow::anyhow!("cannot load robot '{spec}': {e}"))
 }
+
+/// The robot's planning-group positions picked by name from a joint state (`None` when a group
+/// joint is missing); unnamed positions of the group's length pass through as they are.
+pub fn group_order(
+    robot: &ember_engine::robot::Robot,
+    names: &[String],
+    positions: &[f64],
+) -> Option<Vec<f64>> {
+    if names.is_empty() {
+        return (positions.len() == robot.dof()).then(|| positions.to_vec());
+    }
+    robot
+        .variables()
+        .iter()
+        .map(|v| {
+            names
+                .iter()
+                .position(|n| *n == v.name)
+                .and_then(|i| positions.get(i).copied())
+        })
+        .collect()
+}

@@ -4,8 +4,9 @@
 //! daemon has taken everything sent before it, so the world matches the recording; with
 //! `--check` each reply is compared with the recorded one (same seed, same world: same path).
 
+use super::group_order;
 use crate::cli::ReplayArgs;
-use crate::session::{Event, Session};
+use crate::session::{Event, Session, TopicMap};
 use ember_sdk::wire::{PlanRequestHeader, Point};
 use ember_sdk::Client;
 use std::process::ExitCode;
@@ -24,6 +25,8 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
             args.instance
         )
     })?;
+    let robot = super::load_robot(&args.robot)?;
+    let topics = TopicMap::parse(&args.topic_map)?;
     let base = taken(&client)?;
     let mut sent = 0u64;
     let (mut plans, mut reproduced, mut messages) = (0usize, 0usize, 0usize);
@@ -31,7 +34,7 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
     for file in &args.files {
         let session = Session::open(file)?;
         let mut clock: Option<(u64, Instant)> = None;
-        messages += session.for_each(args.allow_truncated, |log_ns, event| {
+        messages += session.for_each(args.allow_truncated, &topics, |log_ns, event| {
             if let Some(speed) = args.speed {
                 let (t0, w0) = *clock.get_or_insert((log_ns, Instant::now()));
                 let due = Duration::from_secs_f64(log_ns.saturating_sub(t0) as f64 / 1e9 / speed);
@@ -44,7 +47,10 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
                     client.publish_object_raw(u)?;
                     sent += 1;
                 }
-                Event::Joints(q) => {
+                Event::Joints { names, positions } => {
+                    let Some(q) = group_order(&robot, &names, &positions) else {
+                        return Ok(()); // Not the robot's joints: nothing to send.
+                    };
                     client.publish_joints(&q)?;
                     sent += 1;
                 }

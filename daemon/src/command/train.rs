@@ -6,7 +6,7 @@
 use crate::cli::TrainArgs;
 use crate::config::Config;
 use crate::service::ingest::object_of;
-use crate::session::{Event, Session};
+use crate::session::{Event, Session, TopicMap};
 use crate::world::World;
 use ember_engine::experience::train::learn;
 use ember_engine::experience::{ExperienceParams, FlameDb, SparkDb};
@@ -31,6 +31,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<ExitCode> {
         FlameDb::new(ExperienceParams::default(), config.map.resolution)
     };
     let (spark0, flame0) = (spark.len(), flame.len());
+    let topics = TopicMap::parse(&args.topic_map)?;
     let mut plans = 0usize;
     for file in &args.files {
         let session = Session::open(file)?;
@@ -40,7 +41,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<ExitCode> {
         );
         bar.set_message(file.display().to_string());
         let mut world = World::new(&config);
-        let read = session.for_each(true, |_, event| {
+        let read = session.for_each(true, &topics, |_, event| {
             bar.inc(1);
             match event {
                 Event::Object(u) => match object_of(&u) {
@@ -50,8 +51,10 @@ pub fn run(args: TrainArgs) -> anyhow::Result<ExitCode> {
                     }
                     Err(_) => {} // The daemon rejected it too.
                 },
-                Event::Joints(q) => {
-                    if robot.validate(&q).is_ok() {
+                Event::Joints { names, positions } => {
+                    if let Some(q) = super::group_order(&robot, &names, &positions)
+                        .filter(|q| robot.validate(q).is_ok())
+                    {
                         world.set_joints(q);
                     }
                 }

@@ -412,3 +412,193 @@ fn recorded_fixture_session_replays_as_recorded() {
         "the camera's view of the table is in the map: {s:?}"
     );
 }
+
+/// Writes a small ROS 2-style bag: a depth cloud with an extra `intensity` field, its camera
+/// pose, a joint state naming every robot joint in another order, and a motion-capture pose.
+fn write_ros2_bag(path: &std::path::Path) {
+    use ember_sdk::recording::{
+        encode, Header, JointState, PointCloud2, PointField, Pose, PoseStamped, Time,
+    };
+    let schemas: BTreeMap<&str, String> = recording::schemas().into_iter().collect();
+    let mut w = mcap::Writer::new(std::io::BufWriter::new(
+        std::fs::File::create(path).unwrap(),
+    ))
+    .unwrap();
+    let mut channel = |topic: &str, ty: &str| {
+        let s = w.add_schema(ty, "ros2msg", schemas[ty].as_bytes()).unwrap();
+        w.add_channel(s, topic, "cdr", &BTreeMap::new()).unwrap()
+    };
+    let (cloud_ch, pose_ch, joints_ch, mocap_ch) = (
+        channel("/camera/depth/points", "sensor_msgs/msg/PointCloud2"),
+        channel("/camera/pose", "geometry_msgs/msg/PoseStamped"),
+        channel("/joint_states", "sensor_msgs/msg/JointState"),
+        channel("/mocap/table", "geometry_msgs/msg/PoseStamped"),
+    );
+    let header = |frame: &str| Header {
+        stamp: Time {
+            sec: 100,
+            nanosec: 0,
+        },
+        frame_id: frame.into(),
+    };
+    let mut data = Vec::new();
+    for i in 0..500 {
+        for v in [
+            0.01 * (i % 25) as f32,
+            0.01 * (i / 25) as f32,
+            1.2f32,
+            7.0f32,
+        ] {
+            data.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    let field = |name: &str, offset| PointField {
+        name: name.into(),
+        offset,
+        datatype: 7,
+        count: 1,
+    };
+    let cloud = PointCloud2 {
+        header: header("camera"),
+        height: 1,
+        width: 500,
+        fields: vec![
+            field("x", 0),
+            field("y", 4),
+            field("z", 8),
+            field("intensity", 12),
+        ],
+        is_bigendian: false,
+        point_step: 16,
+        row_step: 16 * 500,
+        data,
+        is_dense: true,
+    };
+    let camera = PoseStamped {
+        header: header("base_link"),
+        pose: Pose {
+            position: [0.0, 0.0, 1.0],
+            orientation: [-0.5, 0.5, -0.5, 0.5],
+        },
+    };
+    let names = [
+        "l_wheel_joint",
+        "r_wheel_joint",
+        "head_pan_joint",
+        "torso_lift_joint",
+        "shoulder_pan_joint",
+        "shoulder_lift_joint",
+        "upperarm_roll_joint",
+        "elbow_flex_joint",
+        "forearm_roll_joint",
+        "wrist_flex_joint",
+        "wrist_roll_joint",
+    ];
+    let positions = [0.0, 0.0, 0.0, 0.1, 1.32, 1.40, -0.2, 1.72, 0.0, 1.66, 0.0];
+    let js = JointState {
+        header: header(""),
+        name: names.iter().map(|s| s.to_string()).collect(),
+        position: positions.to_vec(),
+        velocity: vec![],
+        effort: vec![],
+    };
+    let table = PoseStamped {
+        header: header("base_link"),
+        pose: Pose {
+            position: [1.1, 0.0, 0.7],
+            orientation: [0.0, 0.0, 0.0, 1.0],
+        },
+    };
+    for (seq, (ch, msg)) in [
+        (pose_ch, encode(&camera)),
+        (cloud_ch, encode(&cloud)),
+        (joints_ch, encode(&js)),
+        (mocap_ch, encode(&table)),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let h = mcap::records::MessageHeader {
+            channel_id: ch,
+            sequence: seq as u32,
+            log_time: 100_000_000_000 + seq as u64,
+            publish_time: 100_000_000_000,
+        };
+        w.write_to_known_channel(&h, &msg).unwrap();
+    }
+    w.finish().unwrap();
+}
+
+#[test]
+fn a_ros2_bag_replays_through_a_topic_map() {
+    let d = Daemon::start("ros2");
+    let bag = d.db_dir.join("robot.mcap");
+    std::fs::create_dir_all(&d.db_dir).unwrap();
+    write_ros2_bag(&bag);
+    let map = [
+        "/camera/depth/points=cloud",
+        "/camera/pose=cloud_pose",
+        "/joint_states=joints",
+        "/mocap/table=object:table:box:0.8,1.2,0.04",
+    ];
+    let mut args = vec![
+        "replay".to_string(),
+        bag.display().to_string(),
+        "--instance".into(),
+        d.instance.clone(),
+    ];
+    for m in map {
+        args.push("--topic-map".into());
+        args.push(m.into());
+    }
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_ember"))
+        .args(&args)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let client = d.client();
+    let s = wait_for(&client, "the bag's data", |s| {
+        s.clouds == 1 && s.world_objects == 1 && s.joint_states == 1
+    });
+    assert_eq!(s.rejected, 0);
+    // The table from motion capture is an obstacle now.
+    let through = PlanCall {
+        start: TUCK.to_vec(),
+        goals: vec![vec![0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 0.0, 0.0]],
+        pose: None,
+        method: Method::Uniform,
+        time_limit_s: 5.0,
+        seed: 1,
+    };
+    assert_eq!(
+        client
+            .plan(&through, Duration::from_secs(20))
+            .unwrap()
+            .status,
+        Status::GoalInCollision
+    );
+    // A bad mapping is refused with the entry named.
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_ember"))
+        .args([
+            "replay",
+            bag.to_str().unwrap(),
+            "--instance",
+            &d.instance,
+            "--topic-map",
+            "/mocap/table=object:table:cone:1",
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.code() == Some(2)
+            && err.contains("/mocap/table=object:table:cone:1")
+            && err.contains("cone"),
+        "{err}"
+    );
+}
