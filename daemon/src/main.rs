@@ -5,7 +5,6 @@ mod command;
 mod config;
 mod recorder;
 mod service;
-mod session;
 mod world;
 
 use clap::Parser;

@@ -5,6 +5,7 @@
 //! - [`status`]: the numbered status codes of plan replies (codes never change);
 //! - [`services`]: the service definitions shared by daemon and clients;
 //! - [`recording`]: the message types and schemas of session recordings (MCAP, ROS 2 CDR);
+//! - [`session`]: reading recorded sessions (and ROS 2 bags through a topic map) as typed events;
 //! - [`client`]: connect, publish clouds (written straight into shared memory), objects and joint
 //!   states, plan with a timeout.
 #![warn(missing_docs)]
@@ -13,6 +14,7 @@ pub mod client;
 pub mod names;
 pub mod recording;
 pub mod services;
+pub mod session;
 pub mod status;
 pub mod wire;
 

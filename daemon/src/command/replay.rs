@@ -6,7 +6,7 @@
 
 use super::group_order;
 use crate::cli::ReplayArgs;
-use crate::session::{Event, Session, TopicMap};
+use ember_sdk::session::{Event, Session, TopicMap};
 use ember_sdk::wire::{PlanRequestHeader, Point};
 use ember_sdk::Client;
 use std::process::ExitCode;
@@ -34,7 +34,7 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
     for file in &args.files {
         let session = Session::open(file)?;
         let mut clock: Option<(u64, Instant)> = None;
-        messages += session.for_each(args.allow_truncated, &topics, |log_ns, event| {
+        messages += session.for_each(args.allow_truncated, &topics, |log_ns, event| -> anyhow::Result<()> {
             if let Some(speed) = args.speed {
                 let (t0, w0) = *clock.get_or_insert((log_ns, Instant::now()));
                 let due = Duration::from_secs_f64(log_ns.saturating_sub(t0) as f64 / 1e9 / speed);

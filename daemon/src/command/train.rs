@@ -6,11 +6,11 @@
 use crate::cli::TrainArgs;
 use crate::config::Config;
 use crate::service::ingest::object_of;
-use crate::session::{Event, Session, TopicMap};
 use crate::world::World;
 use ember_engine::experience::train::learn;
 use ember_engine::experience::{ExperienceParams, FlameDb, SparkDb};
 use ember_engine::scene::pose_from_xyz_xyzw;
+use ember_sdk::session::{Event, Session, TopicMap};
 use ember_sdk::wire;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::process::ExitCode;
@@ -41,7 +41,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<ExitCode> {
         );
         bar.set_message(file.display().to_string());
         let mut world = World::new(&config);
-        let read = session.for_each(true, &topics, |_, event| {
+        let read = session.for_each(true, &topics, |_, event| -> anyhow::Result<()> {
             bar.inc(1);
             match event {
                 Event::Object(u) => match object_of(&u) {

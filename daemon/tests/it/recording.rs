@@ -602,3 +602,38 @@ fn a_ros2_bag_replays_through_a_topic_map() {
         "{err}"
     );
 }
+
+#[test]
+fn the_fixture_session_reads_in_process() {
+    use ember_sdk::session::{Event, Session, SessionError, TopicMap};
+    let session = Session::open(&crate::fixtures().join(FIXTURE)).unwrap();
+    let (mut objects, mut clouds, mut requests, mut solved) = (0, 0, 0, 0);
+    let mut points = 0;
+    let read = session
+        .for_each(
+            false,
+            &TopicMap::default(),
+            |_, e| -> Result<(), SessionError> {
+                match e {
+                    Event::Object(_) => objects += 1,
+                    Event::Cloud { points: p, .. } => {
+                        clouds += 1;
+                        points += p.len();
+                    }
+                    Event::PlanRequest(_) => requests += 1,
+                    Event::PlanResponse(r) => {
+                        solved += (r.status == 0 && r.waypoints >= 2) as usize
+                    }
+                    Event::Joints { .. } => {}
+                }
+                Ok(())
+            },
+        )
+        .unwrap();
+    assert_eq!(Some(read as u64), session.message_count());
+    assert_eq!((objects, clouds, requests, solved), (3, 2, 3, 3));
+    assert!(
+        points > 50_000,
+        "two 320x240 views of the table: {points} points"
+    );
+}

@@ -9,10 +9,57 @@
 //! `TOPIC=object:ID:SHAPE:D1,D2,D3` (`geometry_msgs/msg/PoseStamped` of a tracked object with
 //! shape `box`, `cylinder`, `sphere` or `capsule` and its dimensions).
 
-use ember_sdk::recording::{self, PlanRequest, PlanResponse, PointCloud2, PoseStamped};
-use ember_sdk::wire::{self, ObjectUpdate, PROTOCOL_VERSION};
+use crate::recording::{self, PlanRequest, PlanResponse, PointCloud2, PoseStamped};
+use crate::wire::{self, ObjectUpdate, PROTOCOL_VERSION};
 use std::collections::HashMap;
 use std::path::Path;
+use thiserror::Error;
+
+/// A recording or topic mapping that cannot be used. Each names the file or the entry.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum SessionError {
+    /// The file could not be read.
+    #[error("cannot read {path}: {message}")]
+    Io {
+        /// File path.
+        path: String,
+        /// The operating system's reason.
+        message: String,
+    },
+    /// The file is not MCAP.
+    #[error("{0}: not a readable MCAP file (no MCAP magic at the start)")]
+    NotMcap(String),
+    /// The file is damaged after some intact messages.
+    #[error("{path}: damaged after {after} messages: {message} (use --allow-truncated to use what is intact)")]
+    Damaged {
+        /// File path.
+        path: String,
+        /// Intact messages before the damage.
+        after: usize,
+        /// What the reader found.
+        message: String,
+    },
+    /// A message does not decode as its topic's type.
+    #[error("{path}: {topic} message {sequence}: {message}")]
+    BadMessage {
+        /// File path.
+        path: String,
+        /// Topic.
+        topic: String,
+        /// The message's sequence number.
+        sequence: u32,
+        /// What is wrong.
+        message: String,
+    },
+    /// A `TOPIC=ROLE` entry is malformed.
+    #[error("topic mapping '{entry}': {message}")]
+    BadMapping {
+        /// The entry as given.
+        entry: String,
+        /// What is wrong.
+        message: String,
+    },
+}
 
 /// What a topic of a foreign bag stands for.
 #[derive(Debug, Clone, PartialEq)]
@@ -33,12 +80,16 @@ pub struct TopicMap(pub HashMap<String, Role>);
 
 impl TopicMap {
     /// Parses `TOPIC=ROLE` entries (see the module docs); errors name the entry.
-    pub fn parse(entries: &[String]) -> anyhow::Result<TopicMap> {
+    pub fn parse(entries: &[String]) -> Result<TopicMap, SessionError> {
         let mut map = HashMap::new();
         for e in entries {
+            let bad = |message: String| SessionError::BadMapping {
+                entry: e.clone(),
+                message,
+            };
             let (topic, role) = e
                 .split_once('=')
-                .ok_or_else(|| anyhow::anyhow!("topic mapping '{e}': expected TOPIC=ROLE"))?;
+                .ok_or_else(|| bad("expected TOPIC=ROLE".into()))?;
             let role = match role {
                 "cloud" => Role::Cloud,
                 "cloud_pose" => Role::CloudPose,
@@ -46,29 +97,33 @@ impl TopicMap {
                 r if r.starts_with("object:") => {
                     let parts: Vec<&str> = r.splitn(4, ':').collect();
                     let [_, id, shape, dims] = parts[..] else {
-                        anyhow::bail!("topic mapping '{e}': expected object:ID:SHAPE:D1,D2,D3");
+                        return Err(bad("expected object:ID:SHAPE:D1,D2,D3".into()));
                     };
                     let code = match shape {
                         "box" => 1,
                         "cylinder" => 2,
                         "sphere" => 3,
                         "capsule" => 4,
-                        other => anyhow::bail!("topic mapping '{e}': unknown shape '{other}' (box, cylinder, sphere, capsule)"),
+                        other => {
+                            return Err(bad(format!(
+                                "unknown shape '{other}' (box, cylinder, sphere, capsule)"
+                            )))
+                        }
                     };
                     let d: Vec<f64> = dims
                         .split(',')
                         .map(str::parse)
                         .collect::<Result<_, _>>()
-                        .map_err(|_| anyhow::anyhow!("topic mapping '{e}': dimensions must be numbers"))?;
+                        .map_err(|_| bad("dimensions must be numbers".into()))?;
                     let mut dims3 = [0.0; 3];
                     for (o, v) in dims3.iter_mut().zip(&d) {
                         *o = *v;
                     }
                     Role::Object(id.to_string(), code, dims3)
                 }
-                other => anyhow::bail!(
-                    "topic mapping '{e}': unknown role '{other}' (cloud, cloud_pose, joints, object:ID:SHAPE:D1,D2,D3)"
-                ),
+                other => return Err(bad(format!(
+                    "unknown role '{other}' (cloud, cloud_pose, joints, object:ID:SHAPE:D1,D2,D3)"
+                ))),
             };
             map.insert(topic.to_string(), role);
         }
@@ -92,14 +147,20 @@ pub enum Event {
     Object(ObjectUpdate),
     /// Joint positions with their names (empty names: already in planning-group order).
     Joints {
+        /// Joint names.
         names: Vec<String>,
+        /// Positions, radians or metres.
         positions: Vec<f64>,
     },
     /// A cloud with its sensor pose (wire form `[x, y, z, qx, qy, qz, qw]`).
     Cloud {
+        /// Sensor frame name.
         frame_id: String,
+        /// Capture time, ns since the Unix epoch.
         stamp_ns: u64,
+        /// Sensor pose in the robot base frame.
         pose: [f64; 7],
+        /// Points in the sensor frame, metres.
         points: Vec<[f32; 3]>,
     },
     /// A plan request as received.
@@ -116,14 +177,13 @@ pub struct Session {
 
 impl Session {
     /// Reads a recording; refuses files that are not MCAP.
-    pub fn open(path: &Path) -> anyhow::Result<Session> {
-        let bytes = std::fs::read(path)
-            .map_err(|e| anyhow::anyhow!("cannot read {}: {e}", path.display()))?;
+    pub fn open(path: &Path) -> Result<Session, SessionError> {
+        let bytes = std::fs::read(path).map_err(|e| SessionError::Io {
+            path: path.display().to_string(),
+            message: e.to_string(),
+        })?;
         if !bytes.starts_with(mcap::MAGIC) {
-            anyhow::bail!(
-                "{}: not a readable MCAP file (no MCAP magic at the start)",
-                path.display()
-            );
+            return Err(SessionError::NotMcap(path.display().to_string()));
         }
         Ok(Session {
             path: path.display().to_string(),
@@ -143,29 +203,40 @@ impl Session {
     /// Calls `f` with every event (and its log time, ns) in order. Damaged data ends the walk:
     /// with `lenient` quietly (the count of intact messages is returned), otherwise as an error
     /// naming the file.
-    pub fn for_each(
+    pub fn for_each<E>(
         &self,
         lenient: bool,
         topics: &TopicMap,
-        mut f: impl FnMut(u64, Event) -> anyhow::Result<()>,
-    ) -> anyhow::Result<usize> {
+        mut f: impl FnMut(u64, Event) -> Result<(), E>,
+    ) -> Result<usize, E>
+    where
+        E: From<SessionError>,
+    {
         let mut read = 0usize;
         let mut pending_cloud: Option<PointCloud2> = None;
         // In foreign bags a cloud uses the latest sensor pose; Ember's pair up by stamp.
         let mut sensor_pose: Option<[f64; 7]> = None;
-        for message in mcap::MessageStream::new(&self.bytes)? {
+        let damaged = |after: usize, message: String| SessionError::Damaged {
+            path: self.path.clone(),
+            after,
+            message,
+        };
+        let stream =
+            mcap::MessageStream::new(&self.bytes).map_err(|e| damaged(0, e.to_string()))?;
+        for message in stream {
             let m = match message {
                 Ok(m) => m,
                 Err(_) if lenient => break,
-                Err(e) => anyhow::bail!(
-                    "{}: damaged after {read} messages: {e} (use --allow-truncated to use what is intact)",
-                    self.path
-                ),
+                Err(e) => return Err(damaged(read, e.to_string()).into()),
             };
             read += 1;
             let topic = m.channel.topic.as_str();
-            let bad =
-                |e: String| anyhow::anyhow!("{}: {topic} message {}: {e}", self.path, m.sequence);
+            let bad = |message: String| SessionError::BadMessage {
+                path: self.path.clone(),
+                topic: topic.to_string(),
+                sequence: m.sequence,
+                message,
+            };
             let ember = topic.starts_with("/ember/");
             let event = match (topic, topics.role(topic)) {
                 ("/ember/objects", _) => {
