@@ -121,9 +121,11 @@ impl TopicMap {
                     }
                     Role::Object(id.to_string(), code, dims3)
                 }
-                other => return Err(bad(format!(
+                other => {
+                    return Err(bad(format!(
                     "unknown role '{other}' (cloud, cloud_pose, joints, object:ID:SHAPE:D1,D2,D3)"
-                ))),
+                )))
+                }
             };
             map.insert(topic.to_string(), role);
         }

@@ -25,7 +25,15 @@ pub fn run(args: DemoArgs) -> anyhow::Result<ExitCode> {
     let bar = ProgressBar::new(args.episodes as u64);
     let mut latencies = Vec::new();
     let mut episodes = 0;
+    let mut draws = 0;
     while episodes < args.episodes {
+        draws += 1;
+        anyhow::ensure!(
+            draws <= 50 * args.episodes.max(1),
+            "robot '{}' reached the target in none of {} shelf scenes drawn: it cannot do this task",
+            robot.name(),
+            draws - 1
+        );
         let scene = problems::sample_scene(&spec, &mut rng);
         let env = scene.environment()?;
         let Some(goal) = problems::sample_goal(&robot, &spec, &scene, &env, &mut rng) else {
