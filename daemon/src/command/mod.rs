@@ -38,14 +38,5 @@ pub fn group_order(
     if names.is_empty() {
         return (positions.len() == robot.dof()).then(|| positions.to_vec());
     }
-    robot
-        .variables()
-        .iter()
-        .map(|v| {
-            names
-                .iter()
-                .position(|n| *n == v.name)
-                .and_then(|i| positions.get(i).copied())
-        })
-        .collect()
+    robot.group_positions(names, positions).ok()
 }

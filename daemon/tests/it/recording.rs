@@ -172,16 +172,13 @@ fn replaying_a_session_reproduces_its_plans() {
 
     // Replay it into a fresh daemon: same world, same seeds, same paths.
     let b = Daemon::start("rec-b");
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_ember"))
-        .args([
-            "replay",
-            a.recording.to_str().unwrap(),
-            "--instance",
-            &b.instance,
-            "--check",
-        ])
-        .output()
-        .unwrap();
+    let out = crate::ember(&[
+        "replay",
+        a.recording.to_str().unwrap(),
+        "--instance",
+        &b.instance,
+        "--check",
+    ]);
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success(),
@@ -200,26 +197,20 @@ fn replaying_a_session_reproduces_its_plans() {
     let bytes = std::fs::read(&a.recording).unwrap();
     let cut = a.db_dir.join("cut.mcap");
     std::fs::write(&cut, &bytes[..bytes.len() * 2 / 3]).unwrap();
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_ember"))
-        .args(["replay", cut.to_str().unwrap(), "--instance", &b.instance])
-        .output()
-        .unwrap();
+    let out = crate::ember(&["replay", cut.to_str().unwrap(), "--instance", &b.instance]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(
         err.contains("cut.mcap") && err.contains("--allow-truncated"),
         "{err}"
     );
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_ember"))
-        .args([
-            "replay",
-            cut.to_str().unwrap(),
-            "--instance",
-            &b.instance,
-            "--allow-truncated",
-        ])
-        .output()
-        .unwrap();
+    let out = crate::ember(&[
+        "replay",
+        cut.to_str().unwrap(),
+        "--instance",
+        &b.instance,
+        "--allow-truncated",
+    ]);
     assert!(
         out.status.success(),
         "{}",
@@ -227,15 +218,12 @@ fn replaying_a_session_reproduces_its_plans() {
     );
     let foreign = a.db_dir.join("foreign.mcap");
     std::fs::write(&foreign, b"this is not an mcap file").unwrap();
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_ember"))
-        .args([
-            "replay",
-            foreign.to_str().unwrap(),
-            "--instance",
-            &b.instance,
-        ])
-        .output()
-        .unwrap();
+    let out = crate::ember(&[
+        "replay",
+        foreign.to_str().unwrap(),
+        "--instance",
+        &b.instance,
+    ]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
         out.status.code() == Some(2)
@@ -292,15 +280,12 @@ fn training_from_a_recording_fills_the_databases() {
     assert!(d.child.wait().unwrap().success());
 
     let db = d.db_dir.join("trained");
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_ember"))
-        .args([
-            "train",
-            d.recording.to_str().unwrap(),
-            "--db",
-            db.to_str().unwrap(),
-        ])
-        .output()
-        .unwrap();
+    let out = crate::ember(&[
+        "train",
+        d.recording.to_str().unwrap(),
+        "--db",
+        db.to_str().unwrap(),
+    ]);
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success(),
@@ -384,16 +369,13 @@ fn regenerate_fixture_session() {
 fn recorded_fixture_session_replays_as_recorded() {
     let fixture = crate::fixtures().join(FIXTURE);
     let d = Daemon::start("fixture-replay");
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_ember"))
-        .args([
-            "replay",
-            fixture.to_str().unwrap(),
-            "--instance",
-            &d.instance,
-            "--check",
-        ])
-        .output()
-        .unwrap();
+    let out = crate::ember(&[
+        "replay",
+        fixture.to_str().unwrap(),
+        "--instance",
+        &d.instance,
+        "--check",
+    ]);
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success(),
@@ -551,10 +533,8 @@ fn a_ros2_bag_replays_through_a_topic_map() {
         args.push("--topic-map".into());
         args.push(m.into());
     }
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_ember"))
-        .args(&args)
-        .output()
-        .unwrap();
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let out = crate::ember(&args);
     assert!(
         out.status.success(),
         "{}{}",
@@ -583,17 +563,14 @@ fn a_ros2_bag_replays_through_a_topic_map() {
         Status::GoalInCollision
     );
     // A bad mapping is refused with the entry named.
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_ember"))
-        .args([
-            "replay",
-            bag.to_str().unwrap(),
-            "--instance",
-            &d.instance,
-            "--topic-map",
-            "/mocap/table=object:table:cone:1",
-        ])
-        .output()
-        .unwrap();
+    let out = crate::ember(&[
+        "replay",
+        bag.to_str().unwrap(),
+        "--instance",
+        &d.instance,
+        "--topic-map",
+        "/mocap/table=object:table:cone:1",
+    ]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
         out.status.code() == Some(2)

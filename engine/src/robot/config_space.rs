@@ -155,6 +155,25 @@ impl Robot {
         }
     }
 
+    /// The planning group's positions picked by joint name out of a joint state that names any
+    /// set of robot joints (as ROS joint states do). `Err` names the first group joint missing.
+    pub fn group_positions<S: AsRef<str>>(
+        &self,
+        names: &[S],
+        positions: &[f64],
+    ) -> Result<Vec<f64>, String> {
+        self.variables
+            .iter()
+            .map(|v| {
+                names
+                    .iter()
+                    .position(|n| n.as_ref() == v.name)
+                    .and_then(|i| positions.get(i).copied())
+                    .ok_or_else(|| v.name.clone())
+            })
+            .collect()
+    }
+
     /// Sum of joint ranges (continuous joints count 2π): OMPL's maximum extent.
     pub fn extent(&self) -> f64 {
         self.variables.iter().map(|v| v.upper - v.lower).sum()

@@ -263,16 +263,8 @@ fn group_config(js: &Node, robot: &Robot) -> Result<Vec<f64>, SceneError> {
         return Err(pos_node.err(format!("{} names but {} positions", names.len(), pos.len())));
     }
     robot
-        .variables()
-        .iter()
-        .map(|v| {
-            names
-                .iter()
-                .position(|n| *n == v.name)
-                .map(|i| pos[i])
-                .ok_or_else(|| names_node.err(format!("group joint '{}' is missing", v.name)))
-        })
-        .collect()
+        .group_positions(&names, &pos)
+        .map_err(|joint| names_node.err(format!("group joint '{joint}' is missing")))
 }
 
 /// A MoveIt `MotionPlanRequest` reduced to what Ember plans with.
