@@ -10,13 +10,12 @@
 //! Flags: `--clouds N` (default 100), `--plans N` (default 300). Ends with
 //! `RESULT ipc cloud_p50_us=<f> cloud_p99_us=<f> plan_overhead_p50_us=<f> plan_overhead_p99_us=<f>`.
 
+use crate::daemon::DaemonProcess;
 use ember_engine::planning::{self, Goal, PlanRequest, PlannerParams, UniformSampler};
 use ember_engine::robot::Robot;
 use ember_engine::world::Environment;
 use ember_sdk::wire::{Method, Point};
 use ember_sdk::{Client, PlanCall, Status};
-use std::io::{BufRead, BufReader};
-use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 #[derive(clap::Args)]
@@ -30,43 +29,12 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let exe = std::env::current_exe()?.with_file_name("ember");
-    anyhow::ensure!(
-        exe.exists(),
-        "{} not found: build it first (cargo build --release -p ember-daemon)",
-        exe.display()
-    );
-    let instance = format!("bench-ipc-{}", std::process::id());
-    let dir = std::env::temp_dir().join(&instance);
-    std::fs::create_dir_all(&dir)?;
-    let config = dir.join("emberd.toml");
-    std::fs::write(&config, "[experience]\nonline_learning = false\n")?;
-    let mut child = Command::new(&exe)
-        .args([
-            "run",
-            "--instance",
-            &instance,
-            "--config",
-            config.to_str().unwrap(),
-            "--db-dir",
-            dir.to_str().unwrap(),
-            "--record-dir",
-            dir.join("recordings").to_str().unwrap(),
-        ])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()?;
-    let mut line = String::new();
-    BufReader::new(child.stdout.as_mut().expect("piped")).read_line(&mut line)?;
-    anyhow::ensure!(
-        line.starts_with("emberd ready"),
-        "daemon did not start: {line}"
-    );
-    let result = measure(&instance, &args, &dir.join("recordings"));
-    let _ = child.kill();
-    let _ = child.wait();
-    std::fs::remove_dir_all(&dir).ok();
-    result
+    let daemon = DaemonProcess::start(
+        "ipc",
+        "[experience]\nonline_learning = false\n",
+        &["--no-monitor"],
+    )?;
+    measure(&daemon.instance, &args, &daemon.dir.join("recordings"))
 }
 
 fn measure(instance: &str, args: &Args, recordings: &std::path::Path) -> anyhow::Result<()> {
@@ -192,10 +160,7 @@ fn measure(instance: &str, args: &Args, recordings: &std::path::Path) -> anyhow:
         planning::plan(&robot, &env, &request, &mut UniformSampler)?;
         local.push(t1.elapsed().as_secs_f64() * 1e6);
     }
-    let pct = |v: &mut Vec<f64>, q: f64| {
-        v.sort_by(f64::total_cmp);
-        v[((v.len() as f64 * q).ceil() as usize).clamp(1, v.len()) - 1]
-    };
+    let pct = crate::stats::quantile;
     let (rt50, rt99) = (pct(&mut round, 0.5), pct(&mut round, 0.99));
     let (lt50, lt99) = (pct(&mut local, 0.5), pct(&mut local, 0.99));
     // The transport alone: requests the daemon refuses before planning (wrong protocol version),

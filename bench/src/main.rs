@@ -4,12 +4,15 @@
 //! - `plan --problems DIR...`: the uniform planner over MoveIt-style problem folders;
 //! - `map`: our occupancy map against OctoMap on the same simulated frames;
 //! - `experience --train DIR --test DIR...`: the paper's experiment (uniform vs SPARK vs FLAME);
-//! - `ipc`: cloud hand-off and plan round-trip overhead through a real daemon.
+//! - `ipc`: cloud hand-off and plan round-trip overhead through a real daemon;
+//! - `monitor`: plan latency with monitoring over Zenoh on against off.
 
 mod collision;
+mod daemon;
 mod experience;
 mod ipc;
 mod map;
+mod monitor;
 mod plan;
 mod stats;
 
@@ -34,6 +37,8 @@ enum Bench {
     Experience(experience::Args),
     /// Cloud hand-off latency and plan round-trip overhead through a real daemon.
     Ipc(ipc::Args),
+    /// Plan latency with monitoring over Zenoh on against off (two real daemons).
+    Monitor(monitor::Args),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -43,5 +48,6 @@ fn main() -> anyhow::Result<()> {
         Bench::Map(a) => map::run(a),
         Bench::Experience(a) => experience::run(a),
         Bench::Ipc(a) => ipc::run(a),
+        Bench::Monitor(a) => monitor::run(a),
     }
 }

@@ -25,6 +25,8 @@ pub enum Command {
     Replay(ReplayArgs),
     /// Extend the experience databases from the solved plans of recorded sessions.
     Train(TrainArgs),
+    /// Watch daemons over Zenoh: a live view, or --once --json for scripts.
+    Monitor(MonitorArgs),
 }
 
 #[derive(Debug, Args)]
@@ -104,6 +106,37 @@ pub struct RunArgs {
     /// Do not record this session.
     #[arg(long)]
     pub no_record: bool,
+    /// Do not publish over Zenoh.
+    #[arg(long)]
+    pub no_monitor: bool,
+    /// Zenoh endpoint to listen on for watchers (repeat); overrides monitor.listen.
+    #[arg(long = "monitor-listen")]
+    pub monitor_listen: Vec<String>,
+}
+
+#[derive(Debug, Args)]
+pub struct MonitorArgs {
+    /// Instance to watch (default: every instance found).
+    #[arg(long, default_value = "*")]
+    pub instance: String,
+    /// Zenoh endpoint of a daemon or router (repeat).
+    #[arg(long, default_value = "tcp/127.0.0.1:7447")]
+    pub connect: Vec<String>,
+    /// Print the status of each instance as one JSON array and exit (1 if none answers).
+    #[arg(long)]
+    pub once: bool,
+    /// With --once: JSON output (the only format of --once; accepted for clarity).
+    #[arg(long)]
+    pub json: bool,
+    /// Seconds to wait for answers with --once.
+    #[arg(long, default_value_t = 2.0)]
+    pub timeout: f64,
+    /// Zenoh mode of the watcher: peer or client.
+    #[arg(long, default_value = "peer")]
+    pub mode: String,
+    /// Discover daemons by multicast scouting on the network.
+    #[arg(long)]
+    pub scout: bool,
 }
 
 #[derive(Debug, Args)]

@@ -16,6 +16,26 @@ pub struct Config {
     pub planner: PlannerConfig,
     pub experience: ExperienceConfig,
     pub record: RecordConfig,
+    pub monitor: MonitorConfig,
+}
+
+/// `[monitor]`: Zenoh publications for remote watchers (read-only).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MonitorConfig {
+    pub enabled: bool,
+    /// Zenoh mode: `peer` or `client` (a client needs a router in `connect`).
+    pub mode: String,
+    pub listen: Vec<String>,
+    pub connect: Vec<String>,
+    pub multicast_scouting: bool,
+    /// A Zenoh JSON5 config file used as the base (access control, TLS, ...); empty for none.
+    pub zenoh_config: PathBuf,
+    pub status_hz: f64,
+    pub objects_period_s: f64,
+    pub map_period_s: f64,
+    /// Plan summaries queued for the publisher before drops (counted in status).
+    pub queue: usize,
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -117,6 +137,20 @@ impl Config {
         positive("experience.save_every_s", self.experience.save_every_s)?;
         positive("record.max_file_mb", self.record.max_file_mb)?;
         positive("record.max_file_s", self.record.max_file_s)?;
+        if self.monitor.enabled {
+            positive("monitor.status_hz", self.monitor.status_hz)?;
+            positive("monitor.objects_period_s", self.monitor.objects_period_s)?;
+            positive("monitor.map_period_s", self.monitor.map_period_s)?;
+            if !matches!(self.monitor.mode.as_str(), "peer" | "client") {
+                return Err(format!(
+                    "key monitor.mode must be \"peer\" or \"client\", got \"{}\"",
+                    self.monitor.mode
+                ));
+            }
+            if self.monitor.queue == 0 {
+                return Err("key monitor.queue must be at least 1".into());
+            }
+        }
         if self.record.queue == 0 {
             return Err("key record.queue must be at least 1".into());
         }

@@ -3,6 +3,7 @@
 mod cli;
 mod command;
 mod config;
+mod monitor;
 mod recorder;
 mod service;
 mod world;
@@ -13,7 +14,7 @@ fn main() -> std::process::ExitCode {
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn")),
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn,zenoh=error")),
         )
         .with_writer(std::io::stderr)
         .init();

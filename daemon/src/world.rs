@@ -20,6 +20,8 @@ pub struct Snapshot {
     pub map: Arc<OccupancyMap>,
     /// Objects (+ map when configured) for collision checking.
     pub env: Environment,
+    /// Counts object changes: equal versions, equal objects.
+    pub objects_version: u64,
 }
 
 /// The mutable world (owned by the ingest thread).
@@ -31,6 +33,7 @@ pub struct World {
     params: ExperienceParams,
     use_map: bool,
     padding: f64,
+    objects_version: u64,
 }
 
 impl World {
@@ -49,12 +52,14 @@ impl World {
             params: ExperienceParams::default(),
             use_map: config.planner.use_map,
             padding: config.map.self_filter_padding,
+            objects_version: 0,
         }
     }
 
     /// Adds or moves an object; only its SPARK pairs are recomputed.
     pub fn upsert_object(&mut self, object: Object) {
         let name = object.name.clone();
+        self.objects_version += 1;
         match self.scene.objects.iter().position(|o| o.name == name) {
             Some(i) => self.scene.objects[i] = object,
             None => self.scene.objects.push(object),
@@ -74,6 +79,7 @@ impl World {
     /// Removes an object and its pairs; false when unknown.
     pub fn remove_object(&mut self, name: &str) -> bool {
         let before = self.scene.objects.len();
+        self.objects_version += 1;
         self.scene.objects.retain(|o| o.name != name);
         self.pairs
             .retain(|p| p.names[0] != name && p.names[1] != name);
@@ -115,6 +121,7 @@ impl World {
             pairs: self.pairs.clone(),
             map: self.map.clone(),
             env,
+            objects_version: self.objects_version,
         }
     }
 }

@@ -6,11 +6,13 @@
 //! - [`services`]: the service definitions shared by daemon and clients;
 //! - [`recording`]: the message types and schemas of session recordings (MCAP, ROS 2 CDR);
 //! - [`session`]: reading recorded sessions (and ROS 2 bags through a topic map) as typed events;
+//! - [`monitor`]: what the daemon publishes over Zenoh (keys, JSON documents, map snapshot);
 //! - [`client`]: connect, publish clouds (written straight into shared memory), objects and joint
 //!   states, plan with a timeout.
 #![warn(missing_docs)]
 
 pub mod client;
+pub mod monitor;
 pub mod names;
 pub mod recording;
 pub mod services;

@@ -54,4 +54,24 @@ impl Status {
         .into_iter()
         .find(|s| *s as u32 == code)
     }
+
+    /// Its name in snake case (`ok`, `start_in_collision`, ...), as in logs and JSON.
+    pub fn name(self) -> &'static str {
+        use Status::*;
+        match self {
+            Ok => "ok",
+            InvalidStart => "invalid_start",
+            StartInCollision => "start_in_collision",
+            InvalidGoal => "invalid_goal",
+            GoalInCollision => "goal_in_collision",
+            UnreachablePose => "unreachable_pose",
+            Timeout => "timeout",
+            WrongDof => "wrong_dof",
+            NotFinite => "not_finite",
+            VersionMismatch => "version_mismatch",
+            BadRequest => "bad_request",
+            UnknownLink => "unknown_link",
+            Internal => "internal",
+        }
+    }
 }

@@ -1,6 +1,7 @@
 //! One file per subcommand.
 
 mod demo;
+mod monitor;
 mod plan;
 mod problems;
 mod replay;
@@ -19,6 +20,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Demo(a) => demo::run(a),
         Command::Replay(a) => replay::run(a),
         Command::Train(a) => train::run(a),
+        Command::Monitor(a) => monitor::run(a),
     }
 }
 

@@ -3,6 +3,8 @@
 
 use crate::cli::RunArgs;
 use crate::config::Config;
+use crate::monitor::docs::{plan_summary, Sources};
+use crate::monitor::Monitor;
 use crate::recorder::{self, Record, RecorderOptions};
 use crate::service::ingest::{self, SnapshotCell};
 use crate::service::plan::{self, Experience};
@@ -71,6 +73,12 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     }
     if args.no_record {
         config.record.enabled = false;
+    }
+    if args.no_monitor {
+        config.monitor.enabled = false;
+    }
+    if !args.monitor_listen.is_empty() {
+        config.monitor.listen = args.monitor_listen;
     }
     let robot = Arc::new(super::load_robot(&config.robot)?);
     set_log_level(LogLevel::Error);
@@ -146,16 +154,41 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
             _ => Err(anyhow::anyhow!("ingest could not start")),
         };
     }
+    {
+        let mut st = stats.inner.lock().expect("stats lock");
+        st.spark_entries = experience.spark.len() as u64;
+        st.flame_entries = experience.flame.len() as u64;
+    }
+    let monitor = if config.monitor.enabled {
+        let sources = Sources::new(
+            &config,
+            &robot,
+            stats.clone(),
+            snapshot.clone(),
+            recorder.as_ref().map(|r| r.stats().clone()),
+        );
+        // Monitoring is secondary: without it the daemon still serves (and says so).
+        match Monitor::start(&config.monitor, sources) {
+            Ok(m) => Some(m),
+            Err(e) => {
+                error!("monitoring off: {e:#}");
+                None
+            }
+        }
+    } else {
+        None
+    };
     let started = Instant::now();
     let mut last_save = Instant::now();
     println!(
-        "emberd ready: instance '{}', robot {} ({} joints), experience {} SPARK / {} FLAME entries, recording {}",
+        "emberd ready: instance '{}', robot {} ({} joints), experience {} SPARK / {} FLAME entries, monitoring {}, recording {}",
         config.instance,
         robot.name(),
         robot.dof(),
         experience.spark.len(),
         experience.flame.len(),
-        recording
+        if monitor.is_some() { config.monitor.listen.join(",") } else { "off".into() },
+        recording,
     );
     use std::io::Write;
     std::io::stdout().flush().ok();
@@ -183,11 +216,15 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
             let values: &[f64] = active.payload();
             let recv_ns = ember_sdk::client::now_ns();
             let a = plan::answer(&config, &robot, &snapshot, &mut experience, &h, values);
-            {
+            let seq = {
                 let mut st = stats.inner.lock().expect("stats lock");
                 st.plans += 1;
                 st.solved += (a.header.status == 0) as u64;
-            }
+                st.plan_latency_us.push(a.header.total_us);
+                st.spark_entries = experience.spark.len() as u64;
+                st.flame_entries = experience.flame.len() as u64;
+                st.plans
+            };
             if a.header.status != 0 {
                 warn!(
                     "plan request refused or failed: {}",
@@ -216,9 +253,12 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
                     response: plan::response_message(recv_ns, &a),
                 });
             }
+            if let Some(m) = &monitor {
+                m.plan(plan_summary(&config.instance, seq, recv_ns, &h, &a));
+            }
         }
         while let Ok(Some(active)) = status_server.receive() {
-            let mut reply = plan::status(&stats, &robot, started, &experience);
+            let mut reply = plan::status(&stats, &robot, started);
             if let Some(r) = &recorder {
                 reply.recorded = r.stats().written.load(std::sync::atomic::Ordering::Relaxed);
                 reply.recording_dropped =
@@ -242,6 +282,8 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     if experience.dirty {
         save(&config, &mut experience);
     }
+    // Watchers see the daemon leave (liveliness token undeclared).
+    drop(monitor);
     // The last handle gone, the recorder writes the summary and index and stops.
     drop(recorder);
     if let Some(t) = recorder_thread {

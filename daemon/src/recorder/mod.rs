@@ -79,6 +79,8 @@ pub struct RecorderStats {
     pub written: AtomicU64,
     pub dropped: AtomicU64,
     pub bytes: AtomicU64,
+    /// The file being written.
+    pub current: std::sync::Mutex<PathBuf>,
 }
 
 /// The handle the daemon's threads send records to.
@@ -103,7 +105,7 @@ impl Recorder {
     }
 
     /// The counters.
-    pub fn stats(&self) -> &RecorderStats {
+    pub fn stats(&self) -> &Arc<RecorderStats> {
         &self.stats
     }
 }
@@ -120,8 +122,11 @@ pub fn start(
         )
     })?;
     let (tx, rx) = sync_channel(options.queue.max(1));
-    let stats = Arc::new(RecorderStats::default());
     let first = file_name(&options.dir, 0);
+    let stats = Arc::new(RecorderStats {
+        current: std::sync::Mutex::new(first.clone()),
+        ..Default::default()
+    });
     let writer = SessionWriter::open(&first, &options)?;
     let st = stats.clone();
     let thread = std::thread::Builder::new()
@@ -302,8 +307,12 @@ fn run(
             || writer.opened.elapsed() >= options.max_file_duration
         {
             index += 1;
-            match SessionWriter::open(&file_name(&options.dir, index), &options) {
-                Ok(next) => std::mem::replace(&mut writer, next).finish(),
+            let path = file_name(&options.dir, index);
+            match SessionWriter::open(&path, &options) {
+                Ok(next) => {
+                    std::mem::replace(&mut writer, next).finish();
+                    *stats.current.lock().expect("recorder path lock") = path;
+                }
                 Err(e) => error!("cannot rotate the recording: {e:#}"),
             }
         }

@@ -230,7 +230,7 @@ pub fn run(
             let mut st = stats.inner.lock().expect("stats lock");
             st.clouds += 1;
             st.last_cloud_stamp_ns = h.stamp_ns;
-            st.record_cloud_latency(latency_us);
+            st.cloud_latency_us.push(latency_us);
             changed = true;
         }
         if changed {
@@ -238,7 +238,10 @@ pub fn run(
             {
                 let mut st = stats.inner.lock().expect("stats lock");
                 st.map_blocks = snap.map.block_count() as u64;
+                st.map_occupied_blocks = snap.map.octoboxes().count() as u64;
+                st.map_memory_bytes = snap.map.memory_bytes() as u64;
                 st.world_objects = snap.scene.objects.len() as u64;
+                st.spark_pairs = snap.pairs.len() as u64;
             }
             *snapshot.lock().expect("snapshot lock") = Arc::new(snap);
         } else if node.wait(Duration::from_micros(50)).is_err() {

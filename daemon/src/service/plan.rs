@@ -250,14 +250,9 @@ pub fn answer(
 }
 
 /// The status reply.
-pub fn status(
-    stats: &Stats,
-    robot: &Robot,
-    started: Instant,
-    experience: &Experience,
-) -> StatusReply {
+pub fn status(stats: &Stats, robot: &Robot, started: Instant) -> StatusReply {
     let st = stats.inner.lock().expect("stats lock");
-    let (p50, p99) = st.cloud_latency();
+    let (p50, p99) = st.cloud_latency_us.p50_p99();
     StatusReply {
         version: PROTOCOL_VERSION,
         dof: robot.dof() as u32,
@@ -273,8 +268,8 @@ pub fn status(
         last_cloud_stamp_ns: st.last_cloud_stamp_ns,
         map_blocks: st.map_blocks,
         world_objects: st.world_objects,
-        spark_entries: experience.spark.len() as u64,
-        flame_entries: experience.flame.len() as u64,
+        spark_entries: st.spark_entries,
+        flame_entries: st.flame_entries,
         recorded: 0,
         recording_dropped: 0,
     }

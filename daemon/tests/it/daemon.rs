@@ -24,13 +24,20 @@ pub struct Daemon {
 }
 
 impl Daemon {
+    /// A daemon of its own instance, not monitored over Zenoh (tests stay independent of
+    /// whatever listens on the default Zenoh port).
     pub fn start(tag: &str) -> Daemon {
-        let instance = format!("it-{tag}-{}", std::process::id());
-        let db_dir = std::env::temp_dir().join(format!("ember-db-{instance}"));
-        Self::start_with(instance, db_dir)
+        Self::start_args(tag, &["--no-monitor"])
     }
 
-    fn start_with(instance: String, db_dir: PathBuf) -> Daemon {
+    /// A daemon of its own instance, with extra `ember run` arguments.
+    pub fn start_args(tag: &str, extra: &[&str]) -> Daemon {
+        let instance = format!("it-{tag}-{}", std::process::id());
+        let db_dir = std::env::temp_dir().join(format!("ember-db-{instance}"));
+        Self::start_with(instance, db_dir, extra)
+    }
+
+    fn start_with(instance: String, db_dir: PathBuf, extra: &[&str]) -> Daemon {
         let mut child = Command::new(env!("CARGO_BIN_EXE_ember"))
             .args([
                 "run",
@@ -41,6 +48,7 @@ impl Daemon {
                 "--record-dir",
                 db_dir.join("recordings").to_str().unwrap(),
             ])
+            .args(extra)
             .stdout(Stdio::piped())
             .stderr(Stdio::null())
             .spawn()
@@ -345,13 +353,13 @@ fn sigterm_saves_the_database_and_sigkill_allows_an_immediate_restart() {
     assert!(db_dir.join("spark.emberdb").exists() && db_dir.join("flame.emberdb").exists());
     std::mem::forget(d); // keep the database folder for the restart
 
-    let d = Daemon::start_with(instance.clone(), db_dir.clone());
+    let d = Daemon::start_with(instance.clone(), db_dir.clone(), &["--no-monitor"]);
     d.signal("-KILL");
     let mut d = d;
     d.child.wait().unwrap();
     std::mem::forget(d);
     // Restarted at once under the same instance: serving again, with the saved experience.
-    let d = Daemon::start_with(instance, db_dir);
+    let d = Daemon::start_with(instance, db_dir, &["--no-monitor"]);
     let client = d.client();
     let s = client.status(Duration::from_secs(2)).unwrap();
     assert!(s.spark_entries + s.flame_entries > 0, "{s:?}");

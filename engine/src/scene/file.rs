@@ -135,9 +135,8 @@ impl Scene {
         Ok(scene)
     }
 
-    /// Ember's scene YAML for this scene.
-    pub fn to_yaml(&self) -> String {
-        let file = SceneFile {
+    fn to_file(&self) -> SceneFile {
+        SceneFile {
             name: self.name.clone(),
             objects: self
                 .objects
@@ -152,8 +151,17 @@ impl Scene {
                     }
                 })
                 .collect(),
-        };
-        serde_yaml_ng::to_string(&file).expect("scene serialises")
+        }
+    }
+
+    /// Ember's scene YAML for this scene.
+    pub fn to_yaml(&self) -> String {
+        serde_yaml_ng::to_string(&self.to_file()).expect("scene serialises")
+    }
+
+    /// The same document as [`Scene::to_yaml`], as compact JSON (what the daemon publishes).
+    pub fn to_json(&self) -> String {
+        serde_json::to_string(&self.to_file()).expect("scene serialises")
     }
 
     /// Reads a scene file: Ember's format, or a MoveIt `PlanningScene` (recognised by its

@@ -1,0 +1,61 @@
+//! A real `ember run` process for the benchmarks that go through the daemon.
+
+use std::io::{BufRead, BufReader};
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+
+/// A daemon of its own instance with its own folder; killed and cleaned up on drop.
+pub struct DaemonProcess {
+    child: Child,
+    pub instance: String,
+    pub dir: PathBuf,
+}
+
+impl DaemonProcess {
+    /// Starts `ember run` (the binary next to this one) with `config` (TOML) and `extra`
+    /// arguments, and waits until it serves.
+    pub fn start(tag: &str, config: &str, extra: &[&str]) -> anyhow::Result<DaemonProcess> {
+        let exe = std::env::current_exe()?.with_file_name("ember");
+        anyhow::ensure!(
+            exe.exists(),
+            "{} not found: build it first (cargo build --release -p ember-daemon)",
+            exe.display()
+        );
+        let instance = format!("bench-{tag}-{}", std::process::id());
+        let dir = std::env::temp_dir().join(&instance);
+        std::fs::create_dir_all(&dir)?;
+        let config_file = dir.join("emberd.toml");
+        std::fs::write(&config_file, config)?;
+        let mut child = Command::new(&exe)
+            .args(["run", "--instance", &instance, "--config"])
+            .arg(&config_file)
+            .arg("--db-dir")
+            .arg(&dir)
+            .arg("--record-dir")
+            .arg(dir.join("recordings"))
+            .args(extra)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()?;
+        let mut line = String::new();
+        BufReader::new(child.stdout.as_mut().expect("piped")).read_line(&mut line)?;
+        let daemon = DaemonProcess {
+            child,
+            instance,
+            dir,
+        };
+        anyhow::ensure!(
+            line.starts_with("emberd ready"),
+            "daemon did not start: {line}"
+        );
+        Ok(daemon)
+    }
+}
+
+impl Drop for DaemonProcess {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}
