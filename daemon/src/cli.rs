@@ -19,7 +19,7 @@ pub enum Command {
     Plan(PlanArgs),
     /// Generate the paper's problem sets as MoveIt-style YAML folders.
     Problems(ProblemsArgs),
-    /// Run pick episodes in varied shelf scenes and print a summary.
+    /// The sensing-to-plan demo: a daemon, simulated sensors and a client running pick episodes.
     Demo(DemoArgs),
     /// Feed recorded sessions (MCAP) into a running daemon; with --check, compare the plans.
     Replay(ReplayArgs),
@@ -78,15 +78,34 @@ pub struct ProblemsArgs {
 
 #[derive(Debug, Args)]
 pub struct DemoArgs {
-    /// Pick episodes to run.
-    #[arg(long, default_value_t = 20)]
+    /// Pick episodes to run (each in a new variation of the shelf scene).
+    #[arg(long, default_value_t = 30)]
     pub episodes: usize,
     /// Built-in robot name or robot file.
     #[arg(long, default_value = "fetch")]
     pub robot: String,
-    /// Seed of scene variation and planning.
+    /// Seed of scene variation, sensor noise and planning.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Folder of the session recording.
+    #[arg(
+        long,
+        default_value = "ember-data/demo/recordings",
+        conflicts_with = "no_record"
+    )]
+    pub record: PathBuf,
+    /// Do not record the session.
+    #[arg(long)]
+    pub no_record: bool,
+    /// Folder of the experience databases; emptied first unless --keep-db.
+    #[arg(long, default_value = "ember-data/demo/db")]
+    pub db: PathBuf,
+    /// Start from the experience already in --db instead of an empty database.
+    #[arg(long)]
+    pub keep_db: bool,
+    /// Instance name of the demo's daemon (what `ember monitor` shows).
+    #[arg(long, default_value = "demo")]
+    pub instance: String,
 }
 
 #[derive(Debug, Args)]

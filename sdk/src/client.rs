@@ -226,6 +226,16 @@ impl Client {
 
     /// Plans; waits at most `timeout` for the reply.
     pub fn plan(&self, call: &PlanCall, timeout: Duration) -> Result<PlanReply, ClientError> {
+        self.plan_with_flags(call, 0, timeout)
+    }
+
+    /// Plans with request flags ([`wire::FLAG_NO_LEARN`]).
+    pub fn plan_with_flags(
+        &self,
+        call: &PlanCall,
+        flags: u32,
+        timeout: Duration,
+    ) -> Result<PlanReply, ClientError> {
         let dof = call.start.len();
         let (kind, pose, pt, ot) = match call.pose {
             Some((p, pt, ot)) => (GoalKind::Pose, p, pt, ot),
@@ -242,7 +252,7 @@ impl Client {
             goal_kind: kind as u32,
             goal_count: call.goals.len() as u32,
             method: call.method as u32,
-            flags: 0,
+            flags,
             time_limit_s: call.time_limit_s,
             seed: call.seed,
             pose,

@@ -53,7 +53,7 @@ pub fn schemas() -> Vec<(&'static str, String)> {
         (
             "ember_msgs/msg/PlanRequest",
             with_deps(
-                "# The plan request as received: values = start, then goal_count goal configurations.\nstd_msgs/Header header\nuint32 version\nuint32 dof\nuint32 goal_kind\nuint32 goal_count\nuint32 method\nfloat64 time_limit_s\nuint64 seed\nfloat64[7] pose\nfloat64 position_tolerance\nfloat64 orientation_tolerance\nfloat64[] values\n",
+                "# The plan request as received: values = start, then goal_count goal configurations.\nstd_msgs/Header header\nuint32 version\nuint32 dof\nuint32 goal_kind\nuint32 goal_count\nuint32 method\nuint32 flags\nfloat64 time_limit_s\nuint64 seed\nfloat64[7] pose\nfloat64 position_tolerance\nfloat64 orientation_tolerance\nfloat64[] values\n",
                 &[HEADER, TIME],
             ),
         ),
@@ -231,6 +231,7 @@ pub struct PlanRequest {
     pub goal_kind: u32,
     pub goal_count: u32,
     pub method: u32,
+    pub flags: u32,
     pub time_limit_s: f64,
     pub seed: u64,
     pub pose: [f64; 7],

@@ -74,7 +74,7 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
                         goal_kind: r.goal_kind,
                         goal_count: r.goal_count,
                         method: r.method,
-                        flags: 0,
+                        flags: r.flags,
                         time_limit_s: r.time_limit_s,
                         seed: r.seed,
                         pose: r.pose,

@@ -60,6 +60,31 @@ pub fn object_of(u: &wire::ObjectUpdate) -> Result<Option<Object>, String> {
     }))
 }
 
+/// The wire update that adds or moves `object` (the inverse of [`object_of`]).
+pub fn update_of(object: &Object) -> wire::ObjectUpdate {
+    let (shape, dims) = match object.shape {
+        Shape::Box { half_extents: h } => (ShapeKind::Box, [2.0 * h[0], 2.0 * h[1], 2.0 * h[2]]),
+        Shape::Cylinder {
+            radius,
+            half_length,
+        } => (ShapeKind::Cylinder, [radius, 2.0 * half_length, 0.0]),
+        Shape::Sphere { radius } => (ShapeKind::Sphere, [radius, 0.0, 0.0]),
+        Shape::Capsule {
+            radius,
+            half_length,
+        } => (ShapeKind::Capsule, [radius, 2.0 * half_length, 0.0]),
+    };
+    let (t, q) = ember_engine::scene::pose_to_xyz_xyzw(&object.pose);
+    wire::ObjectUpdate {
+        version: PROTOCOL_VERSION,
+        shape: shape as u32,
+        stamp_ns: now_ns(),
+        id: wire::name(&object.name),
+        dims,
+        pose: [t[0], t[1], t[2], q[0], q[1], q[2], q[3]],
+    }
+}
+
 /// Runs until `stop` is set; `ready` is sent once the subscribers exist.
 pub fn run(
     config: Config,
@@ -176,6 +201,7 @@ pub fn run(
             changed = true;
             stats.inner.lock().expect("stats lock").objects += 1;
         }
+        #[allow(clippy::never_loop)]
         while let Ok(Some(s)) = clouds.receive() {
             let h = *s.user_header();
             let points: &[Point] = s.payload();
@@ -232,6 +258,9 @@ pub fn run(
             st.last_cloud_stamp_ns = h.stamp_ns;
             st.cloud_latency_us.push(latency_us);
             changed = true;
+            // One cloud per round: objects and joint states never wait behind a cloud stream
+            // that arrives as fast as the map takes it.
+            break;
         }
         if changed {
             let snap = world.snapshot();
@@ -249,4 +278,37 @@ pub fn run(
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wire_updates_round_trip_every_shape() {
+        let pose =
+            pose_from_xyz_xyzw([0.5, -0.2, 0.8], [0.0, 0.0, 0.38268343, 0.92387953]).unwrap();
+        for shape in [
+            Shape::cuboid([0.4, 1.0, 0.04]),
+            Shape::Cylinder {
+                radius: 0.035,
+                half_length: 0.06,
+            },
+            Shape::Sphere { radius: 0.1 },
+            Shape::Capsule {
+                radius: 0.05,
+                half_length: 0.2,
+            },
+        ] {
+            let o = Object {
+                name: "thing".into(),
+                shape,
+                pose,
+            };
+            let back = object_of(&update_of(&o)).unwrap().unwrap();
+            assert_eq!((back.name.as_str(), back.shape), ("thing", shape));
+            assert!((back.pose.translation.vector - pose.translation.vector).norm() < 1e-12);
+            assert!(back.pose.rotation.angle_to(&pose.rotation) < 1e-9);
+        }
+    }
 }

@@ -109,6 +109,12 @@ pub fn answer(
         m if m == Method::Flame as u32 => Method::Flame,
         m => return fail(Status::BadRequest, format!("unknown method {m}")),
     };
+    if h.flags & !wire::KNOWN_FLAGS != 0 {
+        return fail(
+            Status::BadRequest,
+            format!("unknown flag bits {:#x}", h.flags & !wire::KNOWN_FLAGS),
+        );
+    }
     let goals = if goal_kind == GoalKind::Joints {
         h.goal_count as usize
     } else {
@@ -221,7 +227,7 @@ pub fn answer(
             let n = msg.len().min(header.message.len());
             header.message[..n].copy_from_slice(&msg.as_bytes()[..n]);
             header.total_us = t0.elapsed().as_secs_f64() * 1e6;
-            if config.experience.online_learning {
+            if config.experience.online_learning && h.flags & wire::FLAG_NO_LEARN == 0 {
                 // After the reply is built: learning never delays the answer's timing fields.
                 let _ = learn(
                     robot,
@@ -297,6 +303,7 @@ pub fn request_message(
         goal_kind: h.goal_kind,
         goal_count: h.goal_count,
         method: h.method,
+        flags: h.flags,
         time_limit_s: h.time_limit_s,
         seed: h.seed,
         pose: h.pose,

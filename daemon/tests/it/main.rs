@@ -1,6 +1,7 @@
 //! Command-line tests: the real `ember` binary, run as a user would.
 
 mod daemon;
+mod demo;
 mod monitor;
 mod plan;
 mod recording;

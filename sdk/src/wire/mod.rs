@@ -11,7 +11,9 @@ pub mod status;
 pub use cloud::{CloudHeader, Point, MAX_CLOUD_POINTS};
 pub use joints::{JointState, MAX_JOINTS};
 pub use objects::{ObjectUpdate, ShapeKind};
-pub use plan::{GoalKind, Method, PlanRequestHeader, PlanResponseHeader};
+pub use plan::{
+    GoalKind, Method, PlanRequestHeader, PlanResponseHeader, FLAG_NO_LEARN, KNOWN_FLAGS,
+};
 pub use status::StatusReply;
 
 /// Version of the protocol these types define.

@@ -9,6 +9,13 @@ use iceoryx2::prelude::*;
 /// Largest request or response payload (values).
 pub const MAX_PLAN_VALUES: usize = 16 * 4096;
 
+/// [`PlanRequestHeader::flags`]: answer, but do not learn from this plan (for evaluation runs
+/// that must not train on their own test problems).
+pub const FLAG_NO_LEARN: u32 = 1;
+
+/// Every flag bit this protocol version knows.
+pub const KNOWN_FLAGS: u32 = FLAG_NO_LEARN;
+
 /// [`PlanRequestHeader::goal_kind`] codes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[repr(u32)]
@@ -48,7 +55,7 @@ pub struct PlanRequestHeader {
     pub goal_count: u32,
     /// A [`Method`] code.
     pub method: u32,
-    /// Reserved, 0.
+    /// Flag bits: [`FLAG_NO_LEARN`]; other bits are refused.
     pub flags: u32,
     /// Planning time limit, seconds.
     pub time_limit_s: f64,

@@ -1,0 +1,316 @@
+//! `ember demo`: the whole product on embedded defaults. Starts emberd (a real `ember run`
+//! process), streams a shelf world to it from a simulated depth camera, motion capture and joint
+//! encoders over iceoryx2, and runs pick episodes as a client would: each episode moves the
+//! shelf and cans, waits until the daemon has seen the change, and plans the same pick with
+//! FLAME, SPARK and uniform sampling. Only the uniform plan is learned from (the others carry
+//! `FLAG_NO_LEARN`), so the learned methods are always tested on scenes they have not seen.
+
+mod rig;
+
+use crate::cli::DemoArgs;
+use ember_engine::planning::PlannerRng;
+use ember_engine::problems;
+use ember_sdk::wire::{Method, FLAG_NO_LEARN};
+use ember_sdk::{Client, PlanCall, Status};
+use indicatif::{ProgressBar, ProgressStyle};
+use rand::{Rng, SeedableRng};
+use rig::{Rig, Truth};
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitCode, Stdio};
+use std::time::{Duration, Instant};
+
+/// The methods compared, in the order each episode plans them (the learning one last).
+const METHODS: [(Method, &str); 3] = [
+    (Method::Flame, "flame"),
+    (Method::Spark, "spark"),
+    (Method::Uniform, "uniform"),
+];
+
+/// Frames the sensors must deliver after a scene change before the episode plans.
+const SETTLE_FRAMES: u64 = 3;
+
+/// The demo's daemon process; stopped with SIGTERM (databases saved, recording closed).
+struct DemoDaemon {
+    child: Child,
+    recording: String,
+}
+
+impl DemoDaemon {
+    fn start(args: &DemoArgs, dir: &Path) -> anyhow::Result<DemoDaemon> {
+        let config = dir.join("emberd-demo.toml");
+        let robot = match Path::new(&args.robot) {
+            p if p.exists() => std::fs::canonicalize(p)?.display().to_string(),
+            _ => args.robot.clone(),
+        };
+        std::fs::write(&config, format!("robot = {}\n", toml::Value::String(robot)))?;
+        let mut cmd = Command::new(std::env::current_exe()?);
+        cmd.args(["run", "--instance", &args.instance, "--config"])
+            .arg(&config)
+            .arg("--db-dir")
+            .arg(&args.db);
+        if args.no_record {
+            cmd.arg("--no-record");
+        } else {
+            cmd.arg("--record-dir").arg(&args.record);
+        }
+        let mut child = cmd
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()?;
+        let mut line = String::new();
+        BufReader::new(child.stdout.as_mut().expect("piped")).read_line(&mut line)?;
+        if !line.starts_with("emberd ready") {
+            let _ = child.kill();
+            let _ = child.wait();
+            anyhow::bail!("the daemon did not start (see its message above)");
+        }
+        let recording = line
+            .trim()
+            .rsplit_once("recording ")
+            .map_or("off", |(_, r)| r)
+            .to_string();
+        println!("{}", line.trim());
+        Ok(DemoDaemon { child, recording })
+    }
+
+    /// SIGTERM, then wait: the daemon saves its databases and closes the recording.
+    fn stop(mut self) -> anyhow::Result<()> {
+        // SAFETY: kill(2) on our own child's pid.
+        unsafe { libc::kill(self.child.id() as i32, libc::SIGTERM) };
+        let status = self.child.wait()?;
+        anyhow::ensure!(status.success(), "the daemon stopped with {status}");
+        Ok(())
+    }
+}
+
+impl Drop for DemoDaemon {
+    fn drop(&mut self) {
+        if let Ok(None) = self.child.try_wait() {
+            // SAFETY: as in `stop`.
+            unsafe { libc::kill(self.child.id() as i32, libc::SIGTERM) };
+            let _ = self.child.wait();
+        }
+    }
+}
+
+/// Results of one method.
+#[derive(Default)]
+struct Tally {
+    episodes: usize,
+    latencies_ms: Vec<f64>,
+    retrieval_us: Vec<f64>,
+}
+
+impl Tally {
+    fn median(v: &[f64]) -> f64 {
+        let mut v = v.to_vec();
+        v.sort_by(f64::total_cmp);
+        match v.len() {
+            0 => f64::NAN,
+            n if n % 2 == 1 => v[n / 2],
+            n => (v[n / 2 - 1] + v[n / 2]) / 2.0,
+        }
+    }
+
+    fn mean(v: &[f64]) -> f64 {
+        v.iter().sum::<f64>() / v.len() as f64
+    }
+}
+
+fn wait_until(
+    client: &Client,
+    rig: &Rig,
+    what: &str,
+    done: impl Fn(&ember_sdk::wire::StatusReply) -> bool,
+) -> anyhow::Result<()> {
+    let deadline = Instant::now() + Duration::from_secs(60);
+    loop {
+        let s = client.status(Duration::from_secs(5))?;
+        if done(&s) {
+            return Ok(());
+        }
+        anyhow::ensure!(
+            rig.running(),
+            "the sensor rig stopped while waiting for {what}"
+        );
+        anyhow::ensure!(
+            Instant::now() < deadline,
+            "the daemon did not take {what} within 60 s"
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+pub fn run(args: DemoArgs) -> anyhow::Result<ExitCode> {
+    anyhow::ensure!(args.episodes > 0, "--episodes must be at least 1");
+    anyhow::ensure!(
+        ember_sdk::names::valid_instance(&args.instance),
+        "invalid instance name '{}'",
+        args.instance
+    );
+    let robot = super::load_robot(&args.robot)?;
+    let spec = problems::dataset("shelf_height_rot").expect("built-in dataset");
+    let start = robot
+        .named_state(spec.start_state)
+        .ok_or_else(|| {
+            anyhow::anyhow!(
+                "robot '{}' has no named state '{}' to start the picks from",
+                robot.name(),
+                spec.start_state
+            )
+        })?
+        .to_vec();
+    // A fresh database unless asked to continue: the learned methods start from nothing.
+    std::fs::create_dir_all(&args.db)?;
+    if !args.keep_db {
+        for f in ["spark.emberdb", "flame.emberdb"] {
+            let _ = std::fs::remove_file(args.db.join(f));
+        }
+    }
+    let work = args
+        .db
+        .parent()
+        .map_or(PathBuf::from("."), Path::to_path_buf);
+    let daemon = DemoDaemon::start(&args, &work)?;
+    let client = {
+        let deadline = Instant::now() + Duration::from_secs(10);
+        loop {
+            match Client::connect(&args.instance) {
+                Ok(c) => break c,
+                Err(e) if Instant::now() > deadline => return Err(e.into()),
+                Err(_) => std::thread::sleep(Duration::from_millis(20)),
+            }
+        }
+    };
+    let mut rng = PlannerRng::seed_from_u64(args.seed);
+    let first = problems::sample_scene(&spec, &mut rng);
+    // The camera looks at the middle of the shelf's front (the scene's board0 pose anchors it).
+    let anchor = first
+        .objects
+        .iter()
+        .find(|o| o.name == "board1")
+        .map_or([1.0, 0.0, 0.7], |o| {
+            let t = o.pose.translation.vector;
+            [t.x, t.y, t.z]
+        });
+    let rig = Rig::start(
+        &args.instance,
+        Truth {
+            scene: first.clone(),
+            joints: start.clone(),
+        },
+        rig::head_camera(anchor),
+        args.seed,
+    )?;
+    println!(
+        "sensors streaming at {} Hz: depth camera 320x240, motion capture of {} objects, joint states; `ember monitor` shows the daemon live",
+        rig::RATE_HZ,
+        first.objects.len()
+    );
+
+    let bar = ProgressBar::new(args.episodes as u64);
+    bar.set_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} episodes  {msg}")
+            .expect("valid template"),
+    );
+    let mut tallies: Vec<Tally> = METHODS.iter().map(|_| Tally::default()).collect();
+    let mut scene = first;
+    let mut draws = 0;
+    let mut episode = 0;
+    while episode < args.episodes {
+        if draws > 0 {
+            scene = problems::sample_scene(&spec, &mut rng);
+        }
+        draws += 1;
+        anyhow::ensure!(
+            draws <= 50 * args.episodes,
+            "robot '{}' reached the target in none of {} shelf scenes drawn: it cannot do this task",
+            robot.name(),
+            draws - 1
+        );
+        // The task layer picks a grasp configuration for a can (IK on the known scene).
+        let env = scene.environment()?;
+        let Some(goal) = problems::sample_goal(&robot, &spec, &scene, &env, &mut rng) else {
+            continue;
+        };
+        // Show the sensors the new scene; plan once the daemon has its objects and fresh frames.
+        let before = client.status(Duration::from_secs(5))?;
+        let frames = rig.frames.load(std::sync::atomic::Ordering::Relaxed);
+        rig.set_scene(scene.clone());
+        let n = scene.objects.len() as u64;
+        wait_until(&client, &rig, "the new scene", |s| {
+            s.objects >= before.objects + 2 * n
+                && s.clouds >= before.clouds + SETTLE_FRAMES
+                && rig.frames.load(std::sync::atomic::Ordering::Relaxed) >= frames + SETTLE_FRAMES
+        })?;
+        episode += 1;
+        let seed: u64 = rng.random();
+        let mut line = Vec::new();
+        for ((method, name), tally) in METHODS.iter().zip(&mut tallies) {
+            let call = PlanCall {
+                start: start.clone(),
+                goals: vec![goal.clone()],
+                pose: None,
+                method: *method,
+                time_limit_s: 5.0,
+                seed,
+            };
+            let flags = if *method == Method::Uniform {
+                0
+            } else {
+                FLAG_NO_LEARN
+            };
+            let t0 = Instant::now();
+            let reply = client.plan_with_flags(&call, flags, Duration::from_secs(30))?;
+            let ms = t0.elapsed().as_secs_f64() * 1e3;
+            tally.episodes += 1;
+            if reply.status == Status::Ok {
+                tally.latencies_ms.push(ms);
+                tally.retrieval_us.push(reply.header.retrieval_us);
+                line.push(format!("{name} {ms:.1} ms"));
+            } else {
+                line.push(format!("{name} {:?}", reply.status));
+            }
+        }
+        bar.set_message(line.join(", "));
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    rig.stop()?;
+    let recording = daemon.recording.clone();
+    daemon.stop()?;
+
+    println!(
+        "\n{:<8} {:>8} {:>7} {:>10} {:>9} {:>13}",
+        "method", "episodes", "solved", "median_ms", "mean_ms", "retrieval_us"
+    );
+    let mut results = Vec::new();
+    for ((_, name), t) in METHODS.iter().zip(&tallies).rev() {
+        let (median, mean) = (Tally::median(&t.latencies_ms), Tally::mean(&t.latencies_ms));
+        let retrieval = Tally::mean(&t.retrieval_us);
+        println!(
+            "{name:<8} {:>8} {:>7} {median:>10.2} {mean:>9.2} {retrieval:>13.1}",
+            t.episodes,
+            t.latencies_ms.len()
+        );
+        results.push(format!(
+            "RESULT demo method={name} episodes={} solved={} median_ms={median:.3} mean_ms={mean:.3} retrieval_us={retrieval:.1}",
+            t.episodes,
+            t.latencies_ms.len()
+        ));
+    }
+    println!(
+        "\nplan latency is end to end (client request to reply over iceoryx2), retrieval included"
+    );
+    println!("recording: {recording}");
+    println!("experience database: {}", args.db.display());
+    for r in results {
+        println!("{r}");
+    }
+    println!(
+        "RESULT demo recording={recording} database={}",
+        args.db.display()
+    );
+    Ok(ExitCode::SUCCESS)
+}

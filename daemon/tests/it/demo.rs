@@ -1,0 +1,111 @@
+//! `ember demo`: the main job, run briefly as a user would; its summary and the files it writes.
+
+use ember_engine::experience::{FlameDb, SparkDb};
+use ember_sdk::session::{Event, Session, SessionError, TopicMap};
+use ember_sdk::wire::FLAG_NO_LEARN;
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+/// `key=value` fields of the `RESULT demo` line that has `first`.
+fn result_line(stdout: &str, first: &str) -> BTreeMap<String, String> {
+    let line = stdout
+        .lines()
+        .find(|l| l.starts_with("RESULT demo ") && l.contains(first))
+        .unwrap_or_else(|| panic!("no RESULT line with {first} in:\n{stdout}"));
+    line.split_whitespace()
+        .skip(2)
+        .map(|kv| {
+            let (k, v) = kv.split_once('=').expect("key=value");
+            (k.to_string(), v.to_string())
+        })
+        .collect()
+}
+
+#[test]
+fn the_demo_plans_with_every_method_through_the_daemon_and_keeps_its_session() {
+    let dir = std::env::temp_dir().join(format!("ember-demo-it-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let (record, db) = (dir.join("recordings"), dir.join("db"));
+    let out = crate::ember(&[
+        "demo",
+        "--episodes",
+        "3",
+        "--seed",
+        "2",
+        "--instance",
+        &format!("it-demo-{}", std::process::id()),
+        "--record",
+        record.to_str().unwrap(),
+        "--db",
+        db.to_str().unwrap(),
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // The last lines: one per method, then the files.
+    let tail: Vec<&str> = stdout.lines().rev().take(4).collect();
+    assert!(tail[0].starts_with("RESULT demo recording="), "{stdout}");
+    for (method, line) in ["flame", "spark", "uniform"].iter().zip(&tail[1..]) {
+        assert!(
+            line.starts_with(&format!("RESULT demo method={method} ")),
+            "{stdout}"
+        );
+        let r = result_line(&stdout, &format!("method={method} "));
+        assert_eq!(r["episodes"], "3");
+        let solved: usize = r["solved"].parse().unwrap();
+        assert!(solved >= 2, "{method}: {solved} of 3 solved");
+        let median: f64 = r["median_ms"].parse().unwrap();
+        let mean: f64 = r["mean_ms"].parse().unwrap();
+        assert!(median > 0.0 && mean > 0.0, "{method}: {median} {mean}");
+        let retrieval: f64 = r["retrieval_us"].parse().unwrap();
+        assert!(retrieval.is_finite() && retrieval >= 0.0);
+    }
+    let files = result_line(&stdout, "recording=");
+    assert_eq!(PathBuf::from(&files["database"]), db);
+
+    // The database learned from the uniform plans only (one per solved episode at most).
+    let spark = SparkDb::load(db.join("spark.emberdb")).unwrap();
+    let flame = FlameDb::load(db.join("flame.emberdb")).unwrap();
+    assert!(spark.len() + flame.len() > 0, "nothing learned");
+
+    // The recording holds the sensors' stream and every plan, flags included.
+    let recording = PathBuf::from(&files["recording"]);
+    assert!(recording.starts_with(&record), "{}", recording.display());
+    let session = Session::open(&recording).unwrap();
+    let (mut clouds, mut objects, mut joints, mut requests, mut no_learn) = (0, 0, 0, 0, 0);
+    session
+        .for_each(
+            false,
+            &TopicMap::default(),
+            |_, e| -> Result<(), SessionError> {
+                match e {
+                    Event::Cloud { points, .. } => {
+                        assert!(!points.is_empty());
+                        clouds += 1;
+                    }
+                    Event::Object(_) => objects += 1,
+                    Event::Joints { .. } => joints += 1,
+                    Event::PlanRequest(r) => {
+                        requests += 1;
+                        no_learn += (r.flags & FLAG_NO_LEARN != 0) as usize;
+                    }
+                    Event::PlanResponse(_) => {}
+                }
+                Ok(())
+            },
+        )
+        .unwrap();
+    assert_eq!(
+        (requests, no_learn),
+        (9, 6),
+        "3 episodes × 3 methods, 2 not learned"
+    );
+    assert!(
+        clouds >= 3 && joints > 0 && objects >= 10,
+        "{clouds} clouds, {joints} joint states, {objects} object updates"
+    );
+    let _ = std::fs::remove_dir_all(dir);
+}
