@@ -274,6 +274,17 @@ fn every_bad_input_gets_its_own_status_and_the_daemon_keeps_serving() {
         ),
         Status::BadRequest
     );
+    assert_eq!(
+        status(
+            PlanRequestHeader {
+                flags: 1 << 7,
+                ..header
+            },
+            &good
+        ),
+        Status::BadRequest,
+        "unknown flag bits are refused"
+    );
     let mut nan = good.clone();
     nan[3] = f64::NAN;
     assert_eq!(status(header, &nan), Status::NotFinite);
@@ -449,4 +460,28 @@ fn bad_config_key_is_named() {
         "{err}"
     );
     std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn a_plan_flagged_no_learn_leaves_the_database_alone() {
+    let d = Daemon::start("nolearn");
+    let client = d.client();
+    publish_table(&client);
+    wait_for(&client, "objects", |s| s.world_objects == 3);
+    let goal: [f64; 8] = goal_near_can().try_into().unwrap();
+    let entries = |c: &Client| {
+        let s = c.status(Duration::from_secs(2)).unwrap();
+        s.spark_entries + s.flame_entries
+    };
+    let reply = client
+        .plan_with_flags(&call(goal), wire::FLAG_NO_LEARN, Duration::from_secs(20))
+        .unwrap();
+    assert_eq!(reply.status, Status::Ok, "{}", reply.message());
+    assert_eq!(entries(&client), 0, "nothing learned from a NO_LEARN plan");
+    let reply = client.plan(&call(goal), Duration::from_secs(20)).unwrap();
+    assert_eq!(reply.status, Status::Ok, "{}", reply.message());
+    assert!(
+        entries(&client) > 0,
+        "the same plan without the flag is learned"
+    );
 }
