@@ -5,7 +5,8 @@
 //! - `map`: our occupancy map against OctoMap on the same simulated frames;
 //! - `experience --train DIR --test DIR...`: the paper's experiment (uniform vs SPARK vs FLAME);
 //! - `ipc`: cloud hand-off and plan round-trip overhead through a real daemon;
-//! - `monitor`: plan latency with monitoring over Zenoh on against off.
+//! - `monitor`: plan latency with monitoring over Zenoh on against off;
+//! - `retrieval`: SPARK retrieval time against database size (metric tree, linear scan).
 
 mod collision;
 mod daemon;
@@ -14,6 +15,7 @@ mod ipc;
 mod map;
 mod monitor;
 mod plan;
+mod retrieval;
 mod stats;
 
 use clap::{Parser, Subcommand};
@@ -39,6 +41,8 @@ enum Bench {
     Ipc(ipc::Args),
     /// Plan latency with monitoring over Zenoh on against off (two real daemons).
     Monitor(monitor::Args),
+    /// SPARK retrieval time against database size: metric tree and linear scan.
+    Retrieval(retrieval::Args),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -49,5 +53,6 @@ fn main() -> anyhow::Result<()> {
         Bench::Experience(a) => experience::run(a),
         Bench::Ipc(a) => ipc::run(a),
         Bench::Monitor(a) => monitor::run(a),
+        Bench::Retrieval(a) => retrieval::run(a),
     }
 }

@@ -52,7 +52,9 @@ fn pair_distance_is_a_metric() {
         );
         assert!(a.distance(&a, &p).abs() < 1e-9);
         assert!((a.distance(&b, &p) - b.distance(&a, &p)).abs() < 1e-12);
-        assert!(a.distance(&c, &p) <= a.distance(&b, &p) + b.distance(&c, &p) + 1e-9);
+        // Up to the angle's documented approximation (2e-8 rad per box; the tree prunes with
+        // a 1e-6 slack).
+        assert!(a.distance(&c, &p) <= a.distance(&b, &p) + b.distance(&c, &p) + 1e-7);
     }
 }
 
