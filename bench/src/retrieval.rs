@@ -9,7 +9,6 @@
 //! samplers=<mean unique>` per size.
 
 use crate::stats::summary;
-use ember_engine::experience::database::Retrieval;
 use ember_engine::experience::primitive::spark_pairs;
 use ember_engine::experience::{ExperienceParams, SparkDb, SparkPair};
 use ember_engine::planning::PlannerRng;
@@ -26,25 +25,6 @@ pub struct Args {
     /// Query scenes per size.
     #[arg(long, default_value_t = 50)]
     queries: usize,
-}
-
-/// The same retrieval by linear scan (the oracle's way), for the comparison.
-fn retrieve_linear(db: &SparkDb, primitives: &[SparkPair]) -> Retrieval {
-    let mut seen = vec![false; db.len()];
-    let values: Vec<_> = db.entries().map(|(_, v)| v).collect();
-    let mut r = Retrieval {
-        query_primitives: primitives.len(),
-        ..Default::default()
-    };
-    for p in primitives {
-        for i in db.within_linear(p) {
-            r.entries += 1;
-            if !std::mem::replace(&mut seen[i], true) {
-                r.push_sampler(values[i]);
-            }
-        }
-    }
-    r
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -83,7 +63,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let r = db.retrieve(q);
             tree.push(t.elapsed().as_secs_f64() * 1e6);
             let t = Instant::now();
-            let l = retrieve_linear(&db, q);
+            let l = db.retrieve_linear(q);
             linear.push(t.elapsed().as_secs_f64() * 1e6);
             anyhow::ensure!(
                 r.entries == l.entries && r.samplers.len() == l.samplers.len(),

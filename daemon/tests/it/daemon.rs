@@ -438,27 +438,23 @@ fn bad_config_key_is_named() {
     let dir = std::env::temp_dir().join(format!("ember-cfg-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let cfg = dir.join("bad.toml");
-    std::fs::write(&cfg, "[map]\nresolution = -0.02\n").unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_ember"))
-        .args(["run", "--config", cfg.to_str().unwrap()])
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), Some(2));
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        err.contains("map.resolution") && err.contains("bad.toml"),
-        "{err}"
-    );
-    std::fs::write(&cfg, "[planner]\nrange_typo = 1.0\n").unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_ember"))
-        .args(["run", "--config", cfg.to_str().unwrap()])
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        out.status.code() == Some(2) && err.contains("range_typo"),
-        "{err}"
-    );
+    // Each bad file is refused (exit 2) with the key named.
+    for (text, named) in [
+        ("[map]\nresolution = -0.02\n", "map.resolution"),
+        ("[planner]\nrange_typo = 1.0\n", "range_typo"),
+        ("[monitor]\nmode = \"router-ish\"\n", "monitor.mode"),
+    ] {
+        std::fs::write(&cfg, text).unwrap();
+        let out = Command::new(env!("CARGO_BIN_EXE_ember"))
+            .args(["run", "--config", cfg.to_str().unwrap()])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            out.status.code() == Some(2) && err.contains(named) && err.contains("bad.toml"),
+            "{text}: {err}"
+        );
+    }
     std::fs::remove_dir_all(&dir).ok();
 }
 

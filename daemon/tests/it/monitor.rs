@@ -219,7 +219,7 @@ fn a_killed_daemon_disappears_for_watchers() {
 }
 
 #[test]
-fn monitoring_can_be_configured_off_and_bad_settings_are_named() {
+fn a_daemon_with_monitoring_off_answers_no_watcher() {
     let d = Daemon::start("zenoh-off");
     let out = monitor_once(&free_endpoint(), &d.instance);
     assert_eq!(
@@ -227,18 +227,4 @@ fn monitoring_can_be_configured_off_and_bad_settings_are_named() {
         Some(1),
         "nothing listens: nobody answers"
     );
-    let dir = std::env::temp_dir().join(format!("ember-mcfg-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let cfg = dir.join("monitor.toml");
-    std::fs::write(&cfg, "[monitor]\nmode = \"router-ish\"\n").unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_ember"))
-        .args(["run", "--config", cfg.to_str().unwrap()])
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        out.status.code() == Some(2) && err.contains("monitor.mode"),
-        "{err}"
-    );
-    let _ = std::fs::remove_dir_all(dir);
 }

@@ -165,13 +165,26 @@ impl SparkDb {
 
     /// The local samplers of every entry near any of the scene's primitives (each entry once).
     pub fn retrieve(&self, primitives: &[SparkPair]) -> Retrieval {
+        self.gather(primitives, |p| self.within(p))
+    }
+
+    /// The same retrieval by linear scan (the oracle, and the benchmark's reference).
+    pub fn retrieve_linear(&self, primitives: &[SparkPair]) -> Retrieval {
+        self.gather(primitives, |p| self.within_linear(p))
+    }
+
+    fn gather(
+        &self,
+        primitives: &[SparkPair],
+        within: impl Fn(&SparkPair) -> Vec<usize>,
+    ) -> Retrieval {
         let mut seen = vec![false; self.keys.len()];
         let mut r = Retrieval {
             query_primitives: primitives.len(),
             ..Default::default()
         };
         for p in primitives {
-            for i in self.within(p) {
+            for i in within(p) {
                 r.entries += 1;
                 if !std::mem::replace(&mut seen[i], true) {
                     r.push_sampler(&self.values[i]);
