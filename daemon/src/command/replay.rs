@@ -18,6 +18,22 @@ fn taken(client: &Client) -> anyhow::Result<u64> {
     Ok(s.objects + s.rejected + s.clouds + s.joint_states)
 }
 
+/// Waits until at most `ahead` of the `sent` inputs are still on their way to the daemon, so
+/// none is lost to a full subscriber queue (the cloud queue holds 2, joint states 16). A daemon
+/// that stops taking inputs for 60 s is an error.
+fn wait_taken(client: &Client, base: u64, sent: u64, ahead: u64) -> anyhow::Result<()> {
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while taken(client)? + ahead < base + sent {
+        anyhow::ensure!(
+            Instant::now() < deadline,
+            "the daemon took no input for 60 s ({} of {sent} taken)",
+            taken(client)? - base
+        );
+        std::thread::sleep(Duration::from_micros(200));
+    }
+    Ok(())
+}
+
 pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
     let client = Client::connect(&args.instance).map_err(|e| {
         anyhow::anyhow!(
@@ -44,6 +60,7 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
             }
             match event {
                 Event::Object(u) => {
+                    wait_taken(&client, base, sent, 8)?;
                     client.publish_object_raw(u)?;
                     sent += 1;
                 }
@@ -51,10 +68,12 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
                     let Some(q) = group_order(&robot, &names, &positions) else {
                         return Ok(()); // Not the robot's joints: nothing to send.
                     };
+                    wait_taken(&client, base, sent, 8)?;
                     client.publish_joints(&q)?;
                     sent += 1;
                 }
                 Event::Cloud { frame_id, stamp_ns, pose, points } => {
+                    wait_taken(&client, base, sent, 0)?;
                     client.publish_cloud(&frame_id, pose, stamp_ns, points.len(), |i| Point {
                         x: points[i][0],
                         y: points[i][1],
@@ -64,10 +83,7 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
                 }
                 Event::PlanRequest(r) => {
                     // The world must hold everything recorded before the request.
-                    let deadline = Instant::now() + Duration::from_secs(60);
-                    while taken(&client)? < base + sent && Instant::now() < deadline {
-                        std::thread::sleep(Duration::from_millis(2));
-                    }
+                    wait_taken(&client, base, sent, 0)?;
                     let header = PlanRequestHeader {
                         version: r.version,
                         dof: r.dof,

@@ -107,5 +107,24 @@ fn the_demo_plans_with_every_method_through_the_daemon_and_keeps_its_session() {
         clouds >= 3 && joints > 0 && objects >= 10,
         "{clouds} clouds, {joints} joint states, {objects} object updates"
     );
+
+    // The session replays into a fresh daemon with every plan reproduced bit for bit (the
+    // replay feeds the sensor stream without losing a cloud, and the flags keep the learning
+    // as it was).
+    let fresh = crate::daemon::Daemon::start("demo-replay");
+    let _client = fresh.client();
+    let out = crate::ember(&[
+        "replay",
+        recording.to_str().unwrap(),
+        "--instance",
+        &fresh.instance,
+        "--check",
+    ]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && text.contains("plans reproduced: 9/9"),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let _ = std::fs::remove_dir_all(dir);
 }
