@@ -84,6 +84,43 @@ fn metric_tree_returns_exactly_what_the_linear_scan_returns() {
 }
 
 #[test]
+fn scene_retrieval_matches_the_linear_scan_when_pairs_share_boxes() {
+    let mut rng = PlannerRng::seed_from_u64(3);
+    let mut sut = SparkDb::new(ExperienceParams {
+        d_radius: 1.0,
+        ..Default::default()
+    });
+    // Scenes of 6 boxes and all their pairs: entries share boxes, as real scenes' pairs do.
+    let scene = |rng: &mut PlannerRng| {
+        let boxes: Vec<_> = (0..6).map(|_| random_box(rng)).collect();
+        let mut pairs = Vec::new();
+        for i in 0..6 {
+            for j in i + 1..6 {
+                pairs.push(SparkPair {
+                    a: boxes[i],
+                    b: boxes[j],
+                    names: [format!("o{i}"), format!("o{j}")],
+                });
+            }
+        }
+        pairs
+    };
+    for _ in 0..100 {
+        for p in scene(&mut rng) {
+            sut.insert(p, configs(&mut rng, 2));
+        }
+    }
+    let mut found = 0;
+    for _ in 0..30 {
+        let q = scene(&mut rng);
+        let (tree, linear) = (sut.retrieve(&q), sut.retrieve_linear(&q));
+        assert_eq!(tree, linear);
+        found += tree.entries;
+    }
+    assert!(found > 0 && found < 30 * 15 * sut.len(), "{found}");
+}
+
+#[test]
 fn equal_primitives_share_an_entry() {
     let mut rng = PlannerRng::seed_from_u64(3);
     let mut sut = SparkDb::new(ExperienceParams::default());
