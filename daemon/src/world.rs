@@ -2,7 +2,7 @@
 //! immutable snapshots the planner works on.
 
 use crate::config::Config;
-use ember_engine::experience::primitive::{spark_pairs_of, SparkPair};
+use ember_engine::experience::primitive::{octoboxes, spark_pairs_of, OctoboxPrimitive, SparkPair};
 use ember_engine::experience::ExperienceParams;
 use ember_engine::robot::Robot;
 use ember_engine::scene::Scene;
@@ -18,6 +18,8 @@ pub struct Snapshot {
     pub pairs: Vec<SparkPair>,
     /// The occupancy map (FLAME's input; an obstacle too when configured).
     pub map: Arc<OccupancyMap>,
+    /// The map's non-empty octoboxes (FLAME's primitives), extracted once per cloud.
+    pub octoboxes: Arc<Vec<OctoboxPrimitive>>,
     /// Objects (+ map when configured) for collision checking.
     pub env: Environment,
     /// Counts object changes: equal versions, equal objects.
@@ -29,6 +31,7 @@ pub struct World {
     scene: Scene,
     pairs: Vec<SparkPair>,
     map: Arc<OccupancyMap>,
+    octoboxes: Arc<Vec<OctoboxPrimitive>>,
     joints: Option<Vec<f64>>,
     params: ExperienceParams,
     use_map: bool,
@@ -48,6 +51,7 @@ impl World {
                 bounds: Some((config.map.bounds_min, config.map.bounds_max)),
                 ..Default::default()
             })),
+            octoboxes: Arc::default(),
             joints: None,
             params: ExperienceParams::default(),
             use_map: config.planner.use_map,
@@ -106,6 +110,9 @@ impl World {
             .map(|q| RobotFilter::new(robot, q, self.padding));
         let map = Arc::make_mut(&mut self.map);
         let report = map.insert_cloud(points, sensor_pose, filter.as_ref());
+        if !report.changed.is_empty() {
+            self.octoboxes = Arc::new(octoboxes(map));
+        }
         report.changed.len()
     }
 
@@ -120,6 +127,7 @@ impl World {
             scene: self.scene.clone(),
             pairs: self.pairs.clone(),
             map: self.map.clone(),
+            octoboxes: self.octoboxes.clone(),
             env,
             objects_version: self.objects_version,
         }

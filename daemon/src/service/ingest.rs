@@ -267,7 +267,7 @@ pub fn run(
             {
                 let mut st = stats.inner.lock().expect("stats lock");
                 st.map_blocks = snap.map.block_count() as u64;
-                st.map_occupied_blocks = snap.map.octoboxes().count() as u64;
+                st.map_occupied_blocks = snap.octoboxes.len() as u64;
                 st.map_memory_bytes = snap.map.memory_bytes() as u64;
                 st.world_objects = snap.scene.objects.len() as u64;
                 st.spark_pairs = snap.pairs.len() as u64;

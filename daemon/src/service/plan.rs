@@ -5,7 +5,6 @@ use super::ingest::SnapshotCell;
 use super::Stats;
 use crate::config::Config;
 use ember_engine::experience::database::Retrieval;
-use ember_engine::experience::primitive::octoboxes;
 use ember_engine::experience::train::learn;
 use ember_engine::experience::{FlameDb, GlobalSampler, SparkDb};
 use ember_engine::planning::{
@@ -174,7 +173,7 @@ pub fn answer(
     let t_ret = Instant::now();
     let retrieval = match method {
         Method::Spark => experience.spark.retrieve(&snap.pairs),
-        Method::Flame => experience.flame.retrieve(&octoboxes(&snap.map)),
+        Method::Flame => experience.flame.retrieve(&snap.octoboxes),
         _ => Retrieval::default(),
     };
     let local_samplers = retrieval.samplers.len() as u32;
