@@ -44,13 +44,18 @@ pub fn query_status(
 ) -> anyhow::Result<BTreeMap<String, StatusDoc>> {
     let deadline = Instant::now() + timeout;
     let mut found = BTreeMap::new();
-    // A session just opened may still be connecting: ask again until the deadline when nobody
-    // answered yet.
-    while found.is_empty() && Instant::now() < deadline {
+    // A session just opened may still be connecting, and peers of the first daemon reached are
+    // learnt by gossip a moment later: ask in rounds until a round finds nobody new (after
+    // someone answered) or the deadline.
+    loop {
         let left = deadline.saturating_duration_since(Instant::now());
+        if left.is_zero() {
+            break;
+        }
+        let before = found.len();
         let replies = session
             .get(key(instance, "status"))
-            .timeout(left.min(Duration::from_millis(500)))
+            .timeout(left.min(Duration::from_millis(300)))
             .wait()
             .map_err(|e| anyhow::anyhow!("zenoh query: {e}"))?;
         while let Ok(reply) = replies.recv() {
@@ -66,6 +71,10 @@ pub fn query_status(
                 }
             }
         }
+        if before > 0 && found.len() == before {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(100));
     }
     Ok(found)
 }

@@ -228,3 +228,29 @@ fn a_daemon_with_monitoring_off_answers_no_watcher() {
         "nothing listens: nobody answers"
     );
 }
+
+#[test]
+fn a_second_daemon_on_a_taken_port_joins_the_first_and_both_are_seen() {
+    let endpoint = free_endpoint();
+    let a = Daemon::start_args("zenoh-first", &["--monitor-listen", &endpoint]);
+    let b = Daemon::start_args("zenoh-second", &["--monitor-listen", &endpoint]);
+    let out = Command::new(env!("CARGO_BIN_EXE_ember"))
+        .args(["monitor", "--once", "--json", "--timeout", "3"])
+        .args(["--connect", &endpoint])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let docs: Vec<StatusDoc> = serde_json::from_slice(&out.stdout).unwrap();
+    for d in [&a, &b] {
+        assert!(
+            docs.iter().any(|s| s.instance == d.instance),
+            "{} missing from {:?}",
+            d.instance,
+            docs.iter().map(|s| &s.instance).collect::<Vec<_>>()
+        );
+    }
+}
