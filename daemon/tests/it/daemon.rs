@@ -94,6 +94,24 @@ impl Drop for Daemon {
     }
 }
 
+/// Replays `file` into daemon `d` with `--check` and asserts that all `plans` plans come back
+/// bit for bit.
+pub fn replay_check(file: &std::path::Path, d: &Daemon, plans: usize) {
+    let out = crate::ember(&[
+        "replay",
+        file.to_str().unwrap(),
+        "--instance",
+        &d.instance,
+        "--check",
+    ]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && text.contains(&format!("plans reproduced: {plans}/{plans}")),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
 pub fn table_scene() -> Scene {
     Scene::load(crate::fixtures().join("moveit/scene.yaml")).unwrap()
 }

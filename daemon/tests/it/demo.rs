@@ -113,18 +113,6 @@ fn the_demo_plans_with_every_method_through_the_daemon_and_keeps_its_session() {
     // as it was).
     let fresh = crate::daemon::Daemon::start("demo-replay");
     let _client = fresh.client();
-    let out = crate::ember(&[
-        "replay",
-        recording.to_str().unwrap(),
-        "--instance",
-        &fresh.instance,
-        "--check",
-    ]);
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success() && text.contains("plans reproduced: 9/9"),
-        "{text}{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    crate::daemon::replay_check(&recording, &fresh, 9);
     let _ = std::fs::remove_dir_all(dir);
 }

@@ -172,20 +172,7 @@ fn replaying_a_session_reproduces_its_plans() {
 
     // Replay it into a fresh daemon: same world, same seeds, same paths.
     let b = Daemon::start("rec-b");
-    let out = crate::ember(&[
-        "replay",
-        a.recording.to_str().unwrap(),
-        "--instance",
-        &b.instance,
-        "--check",
-    ]);
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{text}{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    assert!(text.contains("plans reproduced: 2/2"), "{text}");
+    crate::daemon::replay_check(&a.recording, &b, 2);
     let s = b.client().status(Duration::from_secs(2)).unwrap();
     assert_eq!(
         (s.world_objects, s.clouds, s.joint_states),
@@ -369,20 +356,7 @@ fn regenerate_fixture_session() {
 fn recorded_fixture_session_replays_as_recorded() {
     let fixture = crate::fixtures().join(FIXTURE);
     let d = Daemon::start("fixture-replay");
-    let out = crate::ember(&[
-        "replay",
-        fixture.to_str().unwrap(),
-        "--instance",
-        &d.instance,
-        "--check",
-    ]);
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{text}{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    assert!(text.contains("plans reproduced: 3/3"), "{text}");
+    crate::daemon::replay_check(&fixture, &d, 3);
     let s = d.client().status(Duration::from_secs(2)).unwrap();
     assert_eq!(
         (s.world_objects, s.clouds, s.joint_states),
