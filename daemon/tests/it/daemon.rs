@@ -173,15 +173,20 @@ pub fn goal_near_can() -> Vec<f64> {
         .clone()
 }
 
-fn call(goal: [f64; 8]) -> PlanCall {
+/// A uniform joint-goal request from the tuck pose.
+pub fn uniform_call(goal: Vec<f64>, seed: u64) -> PlanCall {
     PlanCall {
         start: TUCK.to_vec(),
-        goals: vec![goal.to_vec()],
+        goals: vec![goal],
         pose: None,
         method: Method::Uniform,
         time_limit_s: 10.0,
-        seed: 3,
+        seed,
     }
+}
+
+fn call(goal: [f64; 8]) -> PlanCall {
+    uniform_call(goal.to_vec(), 3)
 }
 
 #[test]

@@ -151,14 +151,7 @@ fn replaying_a_session_reproduces_its_plans() {
         .unwrap();
     wait_for(&client, "inputs", |s| s.world_objects == 3 && s.clouds == 1);
     for seed in [11, 12] {
-        let call = PlanCall {
-            start: TUCK.to_vec(),
-            goals: vec![FREE_GOAL.to_vec()],
-            pose: None,
-            method: Method::Uniform,
-            time_limit_s: 10.0,
-            seed,
-        };
+        let call = crate::daemon::uniform_call(FREE_GOAL.to_vec(), seed);
         assert_eq!(
             client.plan(&call, Duration::from_secs(20)).unwrap().status,
             Status::Ok
@@ -329,14 +322,7 @@ fn regenerate_fixture_session() {
         (2, goal_near_can()),
         (3, FREE_GOAL.to_vec()),
     ] {
-        let call = PlanCall {
-            start: TUCK.to_vec(),
-            goals: vec![goal],
-            pose: None,
-            method: Method::Uniform,
-            time_limit_s: 10.0,
-            seed,
-        };
+        let call = crate::daemon::uniform_call(goal, seed);
         assert_eq!(
             client.plan(&call, Duration::from_secs(20)).unwrap().status,
             Status::Ok
