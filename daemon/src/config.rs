@@ -57,6 +57,7 @@ pub struct MapConfig {
     pub bounds_min: [f64; 3],
     pub bounds_max: [f64; 3],
     pub max_points: usize,
+    pub discretize: bool,
 }
 
 #[derive(Debug, Clone, Deserialize)]

@@ -49,6 +49,7 @@ impl World {
                 resolution: config.map.resolution,
                 max_range: config.map.max_range,
                 bounds: Some((config.map.bounds_min, config.map.bounds_max)),
+                discretize: config.map.discretize,
                 ..Default::default()
             })),
             octoboxes: Arc::default(),

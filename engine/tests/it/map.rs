@@ -63,6 +63,61 @@ fn points_beyond_max_range_only_clear() {
 }
 
 #[test]
+fn keys_floor_on_both_sides_of_zero() {
+    let sut = OccupancyMap::new(MapParams::default());
+    assert_eq!(sut.key_of([0.0, 0.019, 0.02]), [0, 0, 1]);
+    assert_eq!(sut.key_of([-0.001, -0.02, -0.0201]), [-1, -1, -2]);
+    assert_eq!(sut.key_of([-1.0e-12, 40.01, -40.01]), [-1, 2000, -2001]);
+}
+
+/// Distinct voxel keys of `points` (identity sensor pose) at the default resolution.
+fn distinct_voxels(points: &[[f32; 3]]) -> usize {
+    let map = OccupancyMap::new(MapParams::default());
+    let keys: std::collections::HashSet<_> = points
+        .iter()
+        .map(|p| map.key_of([p[0] as f64, p[1] as f64, p[2] as f64]))
+        .collect();
+    keys.len()
+}
+
+#[test]
+fn discretize_casts_one_ray_per_endpoint_voxel_even_beyond_range() {
+    let cloud = wall(1.0, 0.0, 0.2);
+    for max_range in [3.0, 0.6] {
+        let params = MapParams {
+            max_range,
+            ..Default::default()
+        };
+        let mut exact = OccupancyMap::new(params.clone());
+        exact.insert_cloud(&cloud, &Pose::identity(), None);
+        let mut sut = OccupancyMap::new(MapParams {
+            discretize: true,
+            ..params
+        });
+        let report = sut.insert_cloud(&cloud, &Pose::identity(), None);
+        // Beyond the range, distinct far voxels still get their own (clipped) ray, as in
+        // OctoMap, although many clipped ends share a cell.
+        assert_eq!(report.rays, distinct_voxels(&cloud), "range {max_range}");
+        let occupied = |m: &OccupancyMap| m.occupied_voxels().collect::<Vec<_>>();
+        assert_eq!(occupied(&sut), occupied(&exact), "range {max_range}");
+        // Rays to voxel centres carve nearly the free space of rays to the points themselves.
+        let free: Vec<_> = exact
+            .known_voxels()
+            .filter(|(_, s)| *s == Occupancy::Free)
+            .collect();
+        let shared = free
+            .iter()
+            .filter(|(k, _)| sut.probability(*k).is_some_and(|p| p < 0.5))
+            .count();
+        assert!(
+            shared as f64 > 0.95 * free.len() as f64,
+            "range {max_range}: {shared} of {} free voxels shared",
+            free.len()
+        );
+    }
+}
+
+#[test]
 fn bounds_limit_what_is_stored() {
     let mut sut = OccupancyMap::new(MapParams {
         bounds: Some(([-1.0, -1.0, -1.0], [0.5, 1.0, 1.0])),

@@ -6,17 +6,30 @@
 //! end); later rays into the same voxel are traced backwards only until they have run through
 //! `STOP_AFTER` cells in a row that earlier rays already passed — rays from one origin converge,
 //! so the rest of their path is already marked. With `MapParams::discretize` only the first ray
-//! per endpoint voxel is traced (faster, a little less free space carved next to surfaces).
+//! per endpoint voxel is traced, to the voxel's centre, exactly as OctoMap's `discretize`:
+//! points are snapped to their voxel centres and de-duplicated before the range is applied
+//! (faster, a little less free space carved next to surfaces).
 //! Marks live in per-block bit masks and block indices in a dense per-cloud table, so the inner
 //! loop does no hashing.
 
 use super::{bits, BlockKey, Leaves, OccupancyMap, RobotFilter, VoxelKey};
 use crate::Pose;
-use nalgebra::Point3;
 
 /// Consecutive already-passed cells after which a repeated ray stops (3: 99.1% voxel agreement
 /// with OctoMap on the map benchmark; 6: 99.3% at 1.2× the cost).
 const STOP_AFTER: u32 = 3;
+
+/// Entries of the per-cloud table of recently seen endpoint voxels (a power of two).
+const RECENT: usize = 4096;
+
+/// Slot of a voxel key in the recently-seen table.
+#[inline]
+fn recent_slot(k: VoxelKey) -> usize {
+    let h = (k[0] as u32).wrapping_mul(0x9E37_79B1)
+        ^ (k[1] as u32).wrapping_mul(0x85EB_CA77)
+        ^ (k[2] as u32).wrapping_mul(0xC2B2_AE3D);
+    (h >> 20) as usize & (RECENT - 1)
+}
 
 /// Largest dense block table built per cloud (entries); larger clouds fall back to hashing.
 const MAX_GRID: u64 = 1 << 23;
@@ -114,8 +127,9 @@ impl Marker<'_> {
 
     /// Marks the cells between the origin `o` and the end `e` (metres): every cell the segment
     /// passes except the cell of `e`, origin cell included. Traced backwards from `e`; with
-    /// `early_stop`, tracing ends at the first cell already passed by another ray of this cloud
-    /// (rays from one origin converge, so the rest of the path is already marked).
+    /// `stop_after` > 0, tracing ends after that many cells in a row that other rays of this
+    /// cloud already passed (rays from one origin converge, so the rest of the path is already
+    /// marked); 0 traces the whole ray.
     fn ray(
         &mut self,
         o: [f64; 3],
@@ -123,9 +137,9 @@ impl Marker<'_> {
         e: [f64; 3],
         ke: VoxelKey,
         res: f64,
-        early_stop: bool,
+        stop_after: u32,
     ) {
-        let mut cur = ke;
+        let cur = ke;
         let mut step = [0i32; 3];
         let mut t_max = [f64::INFINITY; 3];
         let mut t_delta = [f64::INFINITY; 3];
@@ -149,48 +163,57 @@ impl Marker<'_> {
         let n = left[0] + left[1] + left[2];
         let unbounded =
             (0..3).all(|a| ko[a].min(ke[a]) >= self.lo[a] && ko[a].max(ke[a]) <= self.hi[a]);
+        // The walk keeps its state in scalars (not arrays indexed by axis) so that it stays in
+        // registers: this loop is the map's hot path.
+        let [mut x, mut y, mut z] = cur;
+        let [mut tx, mut ty, mut tz] = t_max;
+        let [dx, dy, dz] = t_delta;
+        let [sx, sy, sz] = step;
+        let [mut lx, mut ly, mut lz] = left;
+        // The in-block offset at which a step along each axis enters the next block.
+        let wrap = step.map(|v| if v > 0 { 0 } else { 3 });
+        let mut block = if unbounded {
+            self.block_idx([x >> 2, y >> 2, z >> 2])
+        } else {
+            0
+        };
         let mut seen = 0;
-        let mut block_key = [i32::MIN; 3];
-        let mut block = 0u32;
         for _ in 0..n {
-            let axis = if t_max[0] < t_max[1] {
-                if t_max[0] < t_max[2] {
-                    0
-                } else {
-                    2
-                }
-            } else if t_max[1] < t_max[2] {
-                1
+            // Ties go to the later axis, as in OctoMap's `computeRayKeys`.
+            let crossed = if tx < ty && tx < tz {
+                x += sx;
+                lx -= 1;
+                tx = if lx == 0 { f64::INFINITY } else { tx + dx };
+                x & 3 == wrap[0]
+            } else if tx >= ty && ty < tz {
+                y += sy;
+                ly -= 1;
+                ty = if ly == 0 { f64::INFINITY } else { ty + dy };
+                y & 3 == wrap[1]
             } else {
-                2
-            };
-            cur[axis] += step[axis];
-            left[axis] -= 1;
-            t_max[axis] = if left[axis] == 0 {
-                f64::INFINITY
-            } else {
-                t_max[axis] + t_delta[axis]
+                z += sz;
+                lz -= 1;
+                tz = if lz == 0 { f64::INFINITY } else { tz + dz };
+                z & 3 == wrap[2]
             };
             let newly = if unbounded {
-                let b = [cur[0] >> 2, cur[1] >> 2, cur[2] >> 2];
-                if b != block_key {
-                    block = self.block_idx(b);
-                    block_key = b;
+                if crossed {
+                    block = self.block_idx([x >> 2, y >> 2, z >> 2]);
                 }
-                let bit = (((cur[0] & 3) << 4) | ((cur[1] & 3) << 2) | (cur[2] & 3)) as u32;
+                let bit = ((x & 3) << 4) | ((y & 3) << 2) | (z & 3);
                 let blk = &mut self.map.blocks[block as usize];
                 let m = 1u64 << bit;
                 let new = blk.scan_free & m == 0;
                 blk.scan_free |= m;
                 new
             } else {
-                self.mark_free(cur)
+                self.mark_free([x, y, z])
             };
             if newly {
                 seen = 0;
             } else {
                 seen += 1;
-                if early_stop && seen >= STOP_AFTER {
+                if seen == stop_after {
                     return;
                 }
             }
@@ -221,36 +244,66 @@ impl OccupancyMap {
             None => ([i32::MIN; 3], [i32::MAX; 3]),
         };
         // Pass 1: endpoints in the base frame (robot points dropped), and their bounding box.
-        let mut ends: Vec<([f64; 3], bool)> = Vec::with_capacity(points.len());
+        let mut ends: Vec<([f64; 3], VoxelKey, bool)> = Vec::with_capacity(points.len());
         let mut lo_b = self.key_of(o).map(|v| v >> 2);
         let mut hi_b = lo_b;
+        // Endpoint voxels beyond the range seen so far (discretize: their clipped ends differ,
+        // so they are de-duplicated here rather than by their end cell).
+        let mut far_seen: rustc_hash::FxHashSet<VoxelKey> = Default::default();
+        let beyond = |c: [f64; 3]| {
+            let d = [c[0] - o[0], c[1] - o[1], c[2] - o[2]];
+            max_range > 0.0 && d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > max_range * max_range
+        };
+        // Recently seen endpoint voxels (discretize), direct-mapped: neighbouring pixels and rows
+        // mostly fall in voxels already seen, and skipping them here is cheaper than later.
+        let mut recent = vec![[i32::MIN; 3]; RECENT];
+        let rot = sensor_pose.rotation.to_rotation_matrix().into_inner();
         for p in points {
             if !p.iter().all(|v| v.is_finite()) {
                 report.invalid += 1;
                 continue;
             }
-            let w = sensor_pose * Point3::new(p[0] as f64, p[1] as f64, p[2] as f64);
-            let w = [w.x, w.y, w.z];
+            let (px, py, pz) = (p[0] as f64, p[1] as f64, p[2] as f64);
+            let w =
+                [0, 1, 2].map(|r| rot[(r, 0)] * px + rot[(r, 1)] * py + rot[(r, 2)] * pz + o[r]);
             if let Some(f) = filter {
                 if f.contains(w) {
                     report.filtered += 1;
                     continue;
                 }
             }
-            let d = [w[0] - o[0], w[1] - o[1], w[2] - o[2]];
-            let dist = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-            let end = if max_range > 0.0 && dist > max_range {
-                let s = max_range / dist;
-                ([o[0] + d[0] * s, o[1] + d[1] * s, o[2] + d[2] * s], false)
+            // Discretized (as OctoMap does): one ray per distinct endpoint voxel, to its centre.
+            let (w, key) = if discretize {
+                let k = self.key_of(w);
+                // Neighbouring pixels mostly fall in one voxel: skip the repeats cheaply.
+                let slot = &mut recent[recent_slot(k)];
+                if *slot == k {
+                    continue;
+                }
+                *slot = k;
+                let c = self.voxel_center(k);
+                if beyond(c) && !far_seen.insert(k) {
+                    continue;
+                }
+                (c, Some(k))
             } else {
-                (w, true)
+                (w, None)
             };
-            let b = self.key_of(end.0).map(|v| v >> 2);
+            let d = [w[0] - o[0], w[1] - o[1], w[2] - o[2]];
+            let dist2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+            let (end, key, hit) = if max_range > 0.0 && dist2 > max_range * max_range {
+                let s = max_range / dist2.sqrt();
+                let end = [o[0] + d[0] * s, o[1] + d[1] * s, o[2] + d[2] * s];
+                (end, self.key_of(end), false)
+            } else {
+                (w, key.unwrap_or_else(|| self.key_of(w)), true)
+            };
+            let b = key.map(|v| v >> 2);
             for a in 0..3 {
                 lo_b[a] = lo_b[a].min(b[a]);
                 hi_b[a] = hi_b[a].max(b[a]);
             }
-            ends.push(end);
+            ends.push((end, key, hit));
         }
         let dims = [0, 1, 2].map(|a| (hi_b[a] - lo_b[a] + 1).max(1));
         let volume = dims.iter().map(|&d| d as u64).product::<u64>();
@@ -270,13 +323,13 @@ impl OccupancyMap {
             hi,
         };
         let ko = marker.map.key_of(o);
-        for &(end, hit) in &ends {
-            let ke = marker.map.key_of(end);
-            if marker.mark_end(ke, hit) {
+        for &(end, ke, hit) in &ends {
+            // Discretized ends beyond the range were de-duplicated by their own voxel already.
+            if marker.mark_end(ke, hit) || (discretize && !hit) {
                 report.rays += 1;
-                marker.ray(o, ko, end, ke, res, false);
+                marker.ray(o, ko, end, ke, res, 0);
             } else if !discretize {
-                marker.ray(o, ko, end, ke, res, true);
+                marker.ray(o, ko, end, ke, res, STOP_AFTER);
             }
         }
         let touched = std::mem::take(&mut marker.touched);
