@@ -12,19 +12,14 @@
 //! test set and method: `RESULT experience set=<folder> method=<uniform|spark|flame> n=<n>
 //! solved=<k> mean_ms=<f> median_ms=<f> retrieval_us=<f>`.
 
-use crate::stats::summary;
-use ember_engine::experience::database::Retrieval;
-use ember_engine::experience::primitive::{octoboxes, spark_pairs};
-use ember_engine::experience::train::learn;
-use ember_engine::experience::{ExperienceParams, FlameDb, GlobalSampler, SparkDb};
-use ember_engine::planning::{self, PlanRequest, PlannerParams, Sampler, UniformSampler};
+use crate::learning::{plan_set, prepare, train_one, EvalOptions, Method};
+use ember_engine::experience::{ExperienceParams, FlameDb, SparkDb};
+use ember_engine::planning::PlannerParams;
 use ember_engine::problems::ProblemSet;
 use ember_engine::robot::Robot;
-use ember_engine::scene::Scene;
-use ember_engine::world::map::{MapParams, OccupancyMap};
-use ember_sensors::{quarter_vga, sensed_map};
+use ember_engine::world::map::MapParams;
 use std::path::PathBuf;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -63,28 +58,6 @@ pub struct Args {
     range: Option<f64>,
 }
 
-/// Where the sensed views look: the centre of the scene's objects other than the floor.
-fn look_target(scene: &Scene) -> [f64; 3] {
-    let pts: Vec<_> = scene
-        .objects
-        .iter()
-        .filter(|o| o.name != "floor")
-        .map(|o| o.pose.translation.vector)
-        .collect();
-    let n = pts.len().max(1) as f64;
-    let c = pts.iter().fold(nalgebra::Vector3::zeros(), |a, p| a + p) / n;
-    [c.x, c.y, c.z]
-}
-
-fn map_of(scene: &Scene) -> anyhow::Result<OccupancyMap> {
-    Ok(sensed_map(
-        &scene.environment()?,
-        look_target(scene),
-        &quarter_vga(),
-        MapParams::default(),
-    ))
-}
-
 pub fn run(args: Args) -> anyhow::Result<()> {
     let robot_name = ProblemSet::robot_of(&args.train).unwrap_or_else(|| "fetch".into());
     let robot = Robot::from_spec(&robot_name)?;
@@ -104,17 +77,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .min(train.problems.len());
     let t = Instant::now();
     for (i, p) in train.problems.iter().take(count).enumerate() {
-        let Some(path) = &p.path else { continue };
-        let map = map_of(&p.scene)?;
-        learn(
-            &robot,
-            &p.scene,
-            Some(&map),
-            path,
-            args.interpolate,
-            &mut spark,
-            Some(&mut flame),
-        );
+        train_one(&robot, p, args.interpolate, &mut spark, &mut flame)?;
         if (i + 1) % 50 == 0 || i + 1 == count {
             eprint!(
                 "\rtraining: {}/{count} problems ({:.0} s)",
@@ -152,68 +115,34 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "entries",
         "samplers"
     );
+    let options = EvalOptions {
+        time_limit: args.time_limit,
+        seed: args.seed,
+        range: args.range.unwrap_or(PlannerParams::default().range),
+    };
     for dir in &args.test {
         let set = ProblemSet::load(dir, &robot)?;
-        for method in ["uniform", "spark", "flame"] {
-            let mut times = Vec::new();
-            let mut retrieval = Vec::new();
-            let mut entries = Vec::new();
-            let mut samplers = Vec::new();
-            let mut solved = 0;
-            for p in &set.problems {
-                let env = p.scene.environment()?;
-                let map = if method == "flame" {
-                    Some(map_of(&p.scene)?)
-                } else {
-                    None
-                };
-                let t = Instant::now();
-                let r: Retrieval = match method {
-                    "spark" => spark.retrieve(&spark_pairs(&p.scene, &params)),
-                    "flame" => flame.retrieve(&octoboxes(map.as_ref().expect("rendered"))),
-                    _ => Retrieval::default(),
-                };
-                let (entries_r, samplers_r) = (r.entries, r.samplers.len());
-                let mut sampler: Box<dyn Sampler> = if method == "uniform" {
-                    Box::new(UniformSampler)
-                } else {
-                    Box::new(GlobalSampler::new(r, params.sigma, params.lambda))
-                };
-                let retrieval_s = t.elapsed().as_secs_f64();
-                let req = PlanRequest {
-                    start: p.request.start.clone(),
-                    goal: p.request.goal.clone(),
-                    params: PlannerParams {
-                        seed: args.seed + p.index as u64,
-                        time_limit: Duration::from_secs_f64(args.time_limit),
-                        simplify: false,
-                        range: args.range.unwrap_or(PlannerParams::default().range),
-                        ..Default::default()
-                    },
-                };
-                match planning::plan(&robot, &env, &req, sampler.as_mut()) {
-                    Ok(_) => {
-                        solved += 1;
-                        times.push(t.elapsed().as_secs_f64() * 1e3);
-                    }
-                    Err(_) => times.push(args.time_limit * 1e3 + retrieval_s * 1e3),
-                }
-                retrieval.push(retrieval_s * 1e6);
-                entries.push(entries_r as f64);
-                samplers.push(samplers_r as f64);
-            }
-            let n = set.problems.len();
-            let (median, mean, _) = summary(&mut times);
-            let (_, ret_mean, _) = summary(&mut retrieval);
-            let (_, ent, _) = summary(&mut entries);
-            let (_, smp, _) = summary(&mut samplers);
+        let cases = prepare(&set.problems)?;
+        for method in Method::ALL {
+            let o = plan_set(&robot, &cases, method, &spark, &flame, &options);
             println!(
                 "{:<22} {:<8} {:>5} {:>6} {:>10.3} {:>10.3} {:>13.1} {:>9.1} {:>9.1}",
-                set.name, method, n, solved, mean, median, ret_mean, ent, smp
+                set.name,
+                method.name(),
+                o.n,
+                o.solved,
+                o.mean_ms,
+                o.median_ms,
+                o.retrieval_us,
+                o.entries,
+                o.samplers
             );
             results.push(format!(
-                "RESULT experience set={} method={method} n={n} solved={solved} mean_ms={mean:.3} median_ms={median:.3} retrieval_us={ret_mean:.1}",
-                set.name
+                "RESULT experience set={} method={} n={} {}",
+                set.name,
+                method.name(),
+                o.n,
+                o.result_keys()
             ));
         }
     }

@@ -6,15 +6,19 @@
 //! - `experience --train DIR --test DIR...`: the paper's experiment (uniform vs SPARK vs FLAME);
 //! - `ipc`: cloud hand-off and plan round-trip overhead through a real daemon;
 //! - `monitor`: plan latency with monitoring over Zenoh on against off;
-//! - `retrieval`: SPARK retrieval time against database size (metric tree, linear scan).
+//! - `retrieval`: SPARK retrieval time against database size (metric tree, linear scan);
+//! - `paper`: the paper's experiments (training-size sweep, retrieval scaling), tables and plots.
 
 mod collision;
 mod daemon;
 mod experience;
 mod ipc;
+mod learning;
 mod map;
 mod monitor;
+mod paper;
 mod plan;
+mod plot;
 mod retrieval;
 mod stats;
 
@@ -43,6 +47,8 @@ enum Bench {
     Monitor(monitor::Args),
     /// SPARK retrieval time against database size: metric tree and linear scan.
     Retrieval(retrieval::Args),
+    /// The paper's experiments: training-size sweep on the shelf datasets, tables and plots.
+    Paper(paper::Args),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -54,5 +60,6 @@ fn main() -> anyhow::Result<()> {
         Bench::Ipc(a) => ipc::run(a),
         Bench::Monitor(a) => monitor::run(a),
         Bench::Retrieval(a) => retrieval::run(a),
+        Bench::Paper(a) => paper::run(a),
     }
 }

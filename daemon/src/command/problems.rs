@@ -19,21 +19,25 @@ pub fn run(args: ProblemsArgs) -> anyhow::Result<ExitCode> {
     for name in &names {
         let spec = problems::dataset(name)
             .ok_or_else(|| problems::ProblemError::UnknownDataset(name.clone()))?;
-        for (suffix, count, seed) in [
-            ("", args.train, args.seed),
-            ("_test", args.test, args.seed + 1000),
+        for (set, count, seed) in [
+            (name.clone(), args.train, args.seed),
+            (
+                problems::test_set_name(name),
+                args.test,
+                args.seed + problems::TEST_SEED_OFFSET,
+            ),
         ] {
             if count == 0 {
                 continue;
             }
-            let dir = args.out.join(format!("{name}{suffix}"));
+            let dir = args.out.join(&set);
             let bar = ProgressBar::new(count as u64).with_style(
                 ProgressStyle::with_template(
                     "{msg:24} [{bar:30}] {pos}/{len} ({elapsed}, eta {eta})",
                 )
                 .expect("valid template"),
             );
-            bar.set_message(format!("{name}{suffix}"));
+            bar.set_message(set.clone());
             let options = GenerateOptions {
                 count,
                 seed,

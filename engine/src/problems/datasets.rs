@@ -40,6 +40,9 @@ pub struct DatasetSpec {
     pub goal_tolerance: (f64, f64),
     /// Named robot state to start from.
     pub start_state: &'static str,
+    /// Place task: where the first target goes (nominal pose before the world variation, and
+    /// its variation in its own frame); `None` when the dataset has no place task.
+    pub place: Option<(Pose, Variation)>,
 }
 
 fn obj(name: &str, shape: Shape, x: f64, y: f64, z: f64) -> (String, Shape, Pose) {
@@ -136,6 +139,14 @@ pub fn dataset(name: &str) -> Option<DatasetSpec> {
             goal_offset: front,
             goal_tolerance: (0.01, 0.01),
             start_state: "tuck",
+            // Toward the back of the empty lower compartment.
+            place: Some((
+                Pose::translation(1.10, 0.0, 0.36),
+                Variation {
+                    position: [0.0, 0.3, 0.0],
+                    yaw: 0.0,
+                },
+            )),
         }
     };
     let spec = match name {
@@ -182,6 +193,7 @@ pub fn dataset(name: &str) -> Option<DatasetSpec> {
                 goal_offset: front,
                 goal_tolerance: (0.01, 0.01),
                 start_state: "tuck",
+                place: None,
             }
         }
         "table_pick" => {
@@ -246,6 +258,14 @@ pub fn dataset(name: &str) -> Option<DatasetSpec> {
                 goal_offset: Pose::translation(-0.2, 0.0, 0.025),
                 goal_tolerance: (0.001, 0.003),
                 start_state: "tuck",
+                // The free middle of the table.
+                place: Some((
+                    Pose::translation(1.1, 0.0, 0.78),
+                    Variation {
+                        position: [0.05, 0.05, 0.0],
+                        yaw: 0.0,
+                    },
+                )),
             }
         }
         "box" => {
@@ -276,6 +296,7 @@ pub fn dataset(name: &str) -> Option<DatasetSpec> {
                 goal_offset: top_down,
                 goal_tolerance: (0.01, 0.01),
                 start_state: "tuck",
+                place: None,
             }
         }
         _ => return None,

@@ -31,6 +31,9 @@ pub enum ProblemError {
     /// The dataset name is unknown.
     #[error("unknown dataset '{0}' (known: {known})", known = DATASETS.join(", "))]
     UnknownDataset(String),
+    /// The dataset defines no place task.
+    #[error("dataset '{0}' has no place task")]
+    NoPlaceTask(String),
     /// The robot has no named start state for this dataset.
     #[error("robot has no named state '{0}' to start from")]
     NoStartState(String),
@@ -156,6 +159,11 @@ fn variation_transform(rng: &mut PlannerRng, v: &Variation) -> Pose {
 
 /// One random scene of the dataset.
 pub fn sample_scene(spec: &DatasetSpec, rng: &mut PlannerRng) -> Scene {
+    sample_scene_and_world(spec, rng).0
+}
+
+/// One random scene of the dataset, and the world variation that moved it.
+fn sample_scene_and_world(spec: &DatasetSpec, rng: &mut PlannerRng) -> (Scene, Pose) {
     let world = variation_transform(rng, &spec.world);
     let mut objects: Vec<Object> = spec
         .objects
@@ -178,10 +186,11 @@ pub fn sample_scene(spec: &DatasetSpec, rng: &mut PlannerRng) -> Scene {
             }
         }
     }
-    Scene {
+    let scene = Scene {
         name: spec.name.to_string(),
         objects,
-    }
+    };
+    (scene, world)
 }
 
 /// A collision-free goal configuration reaching a random target of `scene` as `spec` defines
@@ -200,9 +209,19 @@ pub fn sample_goal(
         Translation3::new(sym(rng, pt), sym(rng, pt), sym(rng, pt)),
         UnitQuaternion::from_euler_angles(sym(rng, ot), sym(rng, ot), sym(rng, ot)),
     );
+    tip_ik(robot, env, target_pose * spec.goal_offset * jitter, rng)
+}
+
+/// A collision-free configuration putting the tip at `pose`, or `None` when IK finds none.
+fn tip_ik(
+    robot: &Robot,
+    env: &crate::world::Environment,
+    pose: Pose,
+    rng: &mut PlannerRng,
+) -> Option<Vec<f64>> {
     let pose_goal = PoseGoal {
         link: None,
-        pose: target_pose * spec.goal_offset * jitter,
+        pose,
         position_tolerance: 0.002,
         orientation_tolerance: 0.01,
     };
@@ -215,6 +234,132 @@ pub fn sample_goal(
         .ok()?
         .into_iter()
         .next()
+}
+
+/// The robot holding `spec`'s first target object as a pick grasps it (the tip at the
+/// dataset's goal offset from the object): the robot of its place task.
+pub fn holding_robot(robot: &Robot, spec: &DatasetSpec) -> Option<Robot> {
+    let target = spec.targets.first()?;
+    let (_, shape, _) = spec.objects.iter().find(|(n, ..)| n == target)?;
+    Some(robot.with_attached(
+        robot.tip(),
+        &format!("held_{target}"),
+        *shape,
+        spec.goal_offset.inverse(),
+    ))
+}
+
+/// The candidate loop shared by the generators: `candidate` samples a scene and, when IK
+/// finds collision-free ends, (start, goal); candidates the uniform planner solves in time go
+/// to `keep(number from 1, scene, start, goal, path)` until `options.count` are kept.
+fn solvable_candidates(
+    robot: &Robot,
+    options: &GenerateOptions,
+    progress: &mut dyn FnMut(usize, usize),
+    mut candidate: impl FnMut(&mut PlannerRng) -> (Scene, Option<(Vec<f64>, Vec<f64>)>),
+    mut keep: impl FnMut(usize, Scene, Vec<f64>, Vec<f64>, Vec<Vec<f64>>) -> Result<(), SceneError>,
+) -> Result<GenerateReport, ProblemError> {
+    let mut rng = PlannerRng::seed_from_u64(options.seed);
+    let mut report = GenerateReport {
+        written: 0,
+        attempts: 0,
+        no_ik: 0,
+        unsolved: 0,
+    };
+    while report.written < options.count
+        && report.attempts < options.count * options.max_attempts_factor
+    {
+        report.attempts += 1;
+        let (scene, ends) = candidate(&mut rng);
+        let Some((start, goal)) = ends else {
+            report.no_ik += 1;
+            progress(report.written, report.attempts);
+            continue;
+        };
+        let request = planning::PlanRequest {
+            start: start.clone(),
+            goal: Goal::Joints(vec![goal.clone()]),
+            params: PlannerParams {
+                time_limit: options.solve_time,
+                seed: rng.random(),
+                ..Default::default()
+            },
+        };
+        let env = scene.environment().expect("generated scenes are valid");
+        match planning::plan(robot, &env, &request, &mut UniformSampler) {
+            Ok(result) => {
+                report.written += 1;
+                keep(report.written, scene, start, goal, result.path)?;
+            }
+            Err(_) => report.unsolved += 1,
+        }
+        progress(report.written, report.attempts);
+    }
+    Ok(report)
+}
+
+/// Height above its support at which a place problem holds the object, metres.
+pub const HOLD_LIFT: f64 = 0.03;
+
+/// Samples `options.count` place problems of `spec` in memory (numbered from 1): the robot
+/// (`holding`, from [`holding_robot`]) starts grasping the first target object where it stands
+/// in a sampled scene and must put it at the dataset's place pose; the held object is taken out
+/// of the scene. Like [`generate`], a candidate is kept only when both ends have collision-free
+/// IK solutions and the uniform planner solves it in time (its path is kept).
+pub fn place_problems(
+    holding: &Robot,
+    spec: &DatasetSpec,
+    options: &GenerateOptions,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<(Vec<Problem>, GenerateReport), ProblemError> {
+    let (Some((place, place_variation)), Some(target)) = (spec.place, spec.targets.first()) else {
+        return Err(ProblemError::NoPlaceTask(spec.name.to_string()));
+    };
+    if !spec.objects.iter().any(|(n, ..)| n == target) {
+        return Err(ProblemError::NoPlaceTask(spec.name.to_string()));
+    }
+    let candidate = |rng: &mut PlannerRng| {
+        let (mut scene, world) = sample_scene_and_world(spec, rng);
+        let held = scene.objects.iter().position(|o| &o.name == target);
+        let held = scene
+            .objects
+            .remove(held.expect("datasets hold their targets"));
+        let goal_pose = world * place * variation_transform(rng, &place_variation);
+        let env = scene.environment().expect("generated scenes are valid");
+        // Both ends hold the object a little above its support: resting on it would count as
+        // a collision of the robot's (padded) geometry.
+        let lift = Pose::translation(0.0, 0.0, HOLD_LIFT);
+        let ends = tip_ik(holding, &env, lift * held.pose * spec.goal_offset, rng).and_then(|s| {
+            tip_ik(holding, &env, lift * goal_pose * spec.goal_offset, rng).map(|g| (s, g))
+        });
+        (scene, ends)
+    };
+    let mut out = Vec::new();
+    let keep = |i: usize, scene: Scene, start: Vec<f64>, goal: Vec<f64>, path: Vec<Vec<f64>>| {
+        out.push(Problem {
+            index: i,
+            scene,
+            request: MotionRequest {
+                group_name: holding.group_name().to_string(),
+                start,
+                goal: Goal::Joints(vec![goal]),
+                allowed_planning_time: None,
+            },
+            path: Some(path),
+        });
+        Ok(())
+    };
+    let report = solvable_candidates(holding, options, progress, candidate, keep)?;
+    Ok((out, report))
+}
+
+/// A dataset's test set lives beside its training set as `<name>_test`, generated with the
+/// training seed plus this offset (so the two never share a scene).
+pub const TEST_SEED_OFFSET: u64 = 1000;
+
+/// Folder name of a dataset's test set.
+pub fn test_set_name(dataset: &str) -> String {
+    format!("{dataset}_test")
 }
 
 /// Settings of [`generate`].
@@ -271,40 +416,14 @@ pub fn generate(
         path: out.display().to_string(),
         message: e.to_string(),
     })?;
-    let mut rng = PlannerRng::seed_from_u64(options.seed);
-    let mut report = GenerateReport {
-        written: 0,
-        attempts: 0,
-        no_ik: 0,
-        unsolved: 0,
-    };
     let width = 4.max(options.count.to_string().len());
-    while report.written < options.count
-        && report.attempts < options.count * options.max_attempts_factor
-    {
-        report.attempts += 1;
-        let scene = sample_scene(spec, &mut rng);
+    let candidate = |rng: &mut PlannerRng| {
+        let scene = sample_scene(spec, rng);
         let env = scene.environment().expect("generated scenes are valid");
-        let Some(goal) = sample_goal(robot, spec, &scene, &env, &mut rng) else {
-            report.no_ik += 1;
-            progress(report.written, report.attempts);
-            continue;
-        };
-        let request = planning::PlanRequest {
-            start: start.clone(),
-            goal: Goal::Joints(vec![goal.clone()]),
-            params: PlannerParams {
-                time_limit: options.solve_time,
-                seed: rng.random(),
-                ..Default::default()
-            },
-        };
-        let Ok(result) = planning::plan(robot, &env, &request, &mut UniformSampler) else {
-            report.unsolved += 1;
-            progress(report.written, report.attempts);
-            continue;
-        };
-        let i = report.written + 1;
+        let goal = sample_goal(robot, spec, &scene, &env, rng);
+        (scene, goal.map(|g| (start.clone(), g)))
+    };
+    let keep = |i: usize, scene: Scene, start: Vec<f64>, goal: Vec<f64>, path: Vec<Vec<f64>>| {
         let file = |kind: &str| -> PathBuf { out.join(format!("{kind}{i:0width$}.yaml")) };
         write_text(
             &file("scene"),
@@ -314,10 +433,9 @@ pub fn generate(
             &file("request"),
             &moveit::request_to_yaml(robot, &start, &goal, 60.0),
         )?;
-        write_text(&file("path"), &moveit::path_to_yaml(robot, &result.path))?;
-        report.written += 1;
-        progress(report.written, report.attempts);
-    }
+        write_text(&file("path"), &moveit::path_to_yaml(robot, &path))
+    };
+    let report = solvable_candidates(robot, options, progress, candidate, keep)?;
     let config = format!(
         "# Written by Ember's problem generator.\nrobot: {}\nplanning_group: {}\ndataset: {}\nsamples: {}\nseed: {}\n",
         robot.name(),

@@ -171,4 +171,51 @@ impl Robot {
     pub fn spheres(&self) -> &SphereModel {
         &self.spheres
     }
+
+    /// Links moving rigidly with `link` (itself included): up through fixed joints to the body's
+    /// root, then down through fixed joints (a gripper's palm and fingers, for its wrist).
+    pub fn rigid_body(&self, link: usize) -> Vec<usize> {
+        let mut root = link;
+        while let (Motion::Fixed, Some(p)) = (&self.links[root].motion, self.links[root].parent) {
+            root = p;
+        }
+        let mut body = vec![root];
+        // Parents come before children, so one pass in order finds every fixed descendant.
+        for (i, l) in self.links.iter().enumerate().skip(root + 1) {
+            if matches!(l.motion, Motion::Fixed) && l.parent.is_some_and(|p| body.contains(&p)) {
+                body.push(i);
+            }
+        }
+        body
+    }
+
+    /// A copy of this robot holding `shape` rigidly at `origin` in the frame of link `parent`
+    /// (an object in the gripper). The object becomes a fixed link named `name`: it is checked
+    /// against the environment, and against every link with geometry outside `parent`'s rigid
+    /// body for self-collision (the hand that holds it may touch it).
+    pub fn with_attached(&self, parent: usize, name: &str, shape: Shape, origin: Pose) -> Robot {
+        /// Tighter than the robot's own spheres: held objects are small.
+        const ATTACHED_GROWTH: f64 = 0.01;
+        let mut robot = self.clone();
+        let index = robot.links.len();
+        robot.links.push(Link {
+            name: name.to_string(),
+            parent: Some(parent),
+            origin: Pose::identity(),
+            motion: Motion::Fixed,
+            collision: vec![LinkShape { origin, shape }],
+        });
+        robot.origin_frames.push(fk::Frame::identity());
+        robot
+            .spheres
+            .push_link(index, &robot.links[index], ATTACHED_GROWTH);
+        let touching = robot.rigid_body(index);
+        for (i, l) in robot.links.iter().enumerate() {
+            if !l.collision.is_empty() && !touching.contains(&i) {
+                robot.self_pairs.push((i, index));
+            }
+        }
+        robot.self_pairs.sort_unstable();
+        robot
+    }
 }

@@ -86,43 +86,47 @@ impl SphereModel {
                 .get(&link.name)
                 .copied()
                 .unwrap_or(params.max_growth);
-            let mut spheres: Vec<([f64; 3], f64)> = link
-                .collision
-                .iter()
-                .flat_map(|ls| spherize(ls, growth))
-                .collect();
-            let start = model.len();
-            let cluster_start = model.clusters.len();
-            let mut groups = Vec::new();
-            split_clusters(&mut spheres, &mut groups);
-            for group in groups {
-                let first = model.len();
-                for (c, r) in group {
-                    model.link.push(i as u32);
-                    model.center.push(c);
-                    model.radius.push(r);
-                }
-                let range = first..model.len();
-                let (center, radius) =
-                    bounding_sphere(&model.center[range.clone()], &model.radius[range.clone()])
-                        .expect("clusters are not empty");
-                model.clusters.push(Cluster {
-                    range,
-                    center,
-                    radius,
-                });
-            }
-            let range = start..model.len();
-            model.bounds.push(bounding_sphere(
-                &model.center[range.clone()],
-                &model.radius[range.clone()],
-            ));
-            model.ranges.push(range);
-            model
-                .link_clusters
-                .push(cluster_start..model.clusters.len());
+            model.push_link(i, link, growth);
         }
         model
+    }
+
+    /// Appends the spheres of link `index` (the next link: links are added in order).
+    pub(crate) fn push_link(&mut self, index: usize, link: &Link, max_growth: f64) {
+        debug_assert_eq!(index, self.ranges.len(), "links are added in order");
+        let mut spheres: Vec<([f64; 3], f64)> = link
+            .collision
+            .iter()
+            .flat_map(|ls| spherize(ls, max_growth))
+            .collect();
+        let start = self.len();
+        let cluster_start = self.clusters.len();
+        let mut groups = Vec::new();
+        split_clusters(&mut spheres, &mut groups);
+        for group in groups {
+            let first = self.len();
+            for (c, r) in group {
+                self.link.push(index as u32);
+                self.center.push(c);
+                self.radius.push(r);
+            }
+            let range = first..self.len();
+            let (center, radius) =
+                bounding_sphere(&self.center[range.clone()], &self.radius[range.clone()])
+                    .expect("clusters are not empty");
+            self.clusters.push(Cluster {
+                range,
+                center,
+                radius,
+            });
+        }
+        let range = start..self.len();
+        self.bounds.push(bounding_sphere(
+            &self.center[range.clone()],
+            &self.radius[range.clone()],
+        ));
+        self.ranges.push(range);
+        self.link_clusters.push(cluster_start..self.clusters.len());
     }
 }
 

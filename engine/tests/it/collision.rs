@@ -56,6 +56,43 @@ fn known_colliding_configurations_are_reported() {
 }
 
 #[test]
+fn an_attached_object_moves_with_the_hand_and_collides_as_part_of_the_robot() {
+    let fetch = Robot::builtin("fetch").unwrap();
+    let tip = fetch.tip();
+    // A 30 cm rod held along the tip's x axis, from 20 to 50 cm in front of it.
+    let rod = Shape::cuboid([0.3, 0.04, 0.04]);
+    let sut = fetch.with_attached(tip, "rod", rod, Pose::translation(0.35, 0.0, 0.0));
+    assert_eq!(sut.links().len(), fetch.links().len() + 1);
+    let straight = [0.0; 8];
+    let mut poses = vec![Pose::identity(); sut.links().len()];
+    sut.forward_kinematics(&straight, &mut poses);
+    assert_eq!(
+        poses.last().unwrap(),
+        &poses[tip],
+        "the rod moves with the tip"
+    );
+
+    // A block 45 cm in front of the tip: beyond the bare hand, on the held rod.
+    let at = poses[tip] * nalgebra::Point3::new(0.45, 0.0, 0.0);
+    let env = Environment::from_objects([boxed("block", [0.06; 3], [at.x, at.y, at.z])]).unwrap();
+    assert!(SphereChecker::new(&fetch, &env).is_valid(&straight));
+    let mut checker = SphereChecker::new(&sut, &env);
+    assert!(matches!(
+        checker.contact(&straight),
+        Some(Contact::Object { ref object, .. }) if object == "block"
+    ));
+    // The hand that holds it may touch it: no self-collision in free space.
+    assert!(SphereChecker::new(&sut, &Environment::new()).is_valid(&straight));
+
+    // Held backwards along the forearm it collides with the arm itself.
+    let back = fetch.with_attached(tip, "rod", rod, Pose::translation(-0.35, 0.0, 0.0));
+    assert!(matches!(
+        SphereChecker::new(&back, &Environment::new()).contact(&straight),
+        Some(Contact::SelfCollision { .. })
+    ));
+}
+
+#[test]
 fn static_body_in_collision_blocks_every_configuration() {
     let fetch = Robot::builtin("fetch").unwrap();
     let env =

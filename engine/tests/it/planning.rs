@@ -67,6 +67,47 @@ fn plans_in_generated_scenes_are_collision_free() {
 }
 
 #[test]
+fn place_problems_start_holding_the_target_and_are_solved_for_the_holding_robot() {
+    let robot = Robot::builtin("fetch").unwrap();
+    let spec = problems::dataset("shelf_zero").unwrap();
+    let holding = problems::holding_robot(&robot, &spec).unwrap();
+    let options = GenerateOptions {
+        count: 2,
+        seed: 5,
+        ..Default::default()
+    };
+    let (set, report) =
+        problems::place_problems(&holding, &spec, &options, &mut |_, _| {}).unwrap();
+    assert_eq!((set.len(), report.written), (2, 2));
+    for p in &set {
+        // The held can left the scene; the robot carries it instead.
+        assert!(p.scene.objects.iter().all(|o| o.name != "Can1"));
+        let env = p.scene.environment().unwrap();
+        let path = p.path.as_ref().unwrap();
+        assert_eq!(path.first().unwrap(), &p.request.start);
+        assert!(path_is_valid(&holding, &env, path, DEFAULT_RESOLUTION));
+        // The can goes from the middle board down into the lower compartment (0.34 m lower).
+        let held_z = |q: &[f64]| {
+            let mut poses = vec![Pose::identity(); holding.links().len()];
+            holding.forward_kinematics(q, &mut poses);
+            (poses.last().unwrap() * spec.goal_offset.inverse())
+                .translation
+                .z
+        };
+        let drop = held_z(&p.request.start) - held_z(path.last().unwrap());
+        assert!((drop - 0.34).abs() < 0.02, "dropped by {drop}");
+    }
+    let err = problems::place_problems(
+        &holding,
+        &problems::dataset("box").unwrap(),
+        &options,
+        &mut |_, _| {},
+    )
+    .unwrap_err();
+    assert!(err.to_string().contains("no place task"), "{err}");
+}
+
+#[test]
 fn same_seed_gives_the_same_path() {
     let robot = Robot::builtin("fetch").unwrap();
     let env = table_scene();

@@ -1,0 +1,248 @@
+//! What the `experience` and `paper` benchmarks share: sensed maps of problem scenes, training
+//! SPARK and FLAME from solved problems, and planning a test set with one sampling method.
+//!
+//! Planning time includes retrieval (SPARK's primitive extraction and tree search, FLAME's
+//! octobox extraction and lookups); the FLAME map itself is rendered from the test scene
+//! beforehand, as the daemon keeps it up to date incrementally. A failure counts as the time
+//! limit, as in the paper.
+
+use crate::stats::summary;
+use ember_engine::experience::database::Retrieval;
+use ember_engine::experience::primitive::{octoboxes, spark_pairs};
+use ember_engine::experience::train::learn;
+use ember_engine::experience::{ExperienceParams, FlameDb, GlobalSampler, SparkDb};
+use ember_engine::planning::{self, PlanRequest, PlannerParams, Sampler, UniformSampler};
+use ember_engine::problems::Problem;
+use ember_engine::robot::Robot;
+use ember_engine::scene::Scene;
+use ember_engine::world::map::{MapParams, OccupancyMap};
+use ember_engine::world::Environment;
+use ember_sensors::{quarter_vga, sensed_map};
+use std::time::{Duration, Instant};
+
+/// A sampling method under test.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Method {
+    /// Uniform sampling (the baseline).
+    Uniform,
+    /// SPARK: retrieval by the scene's box pairs.
+    Spark,
+    /// FLAME: retrieval by the sensed map's octoboxes.
+    Flame,
+}
+
+impl Method {
+    /// Every method, baseline first.
+    pub const ALL: [Method; 3] = [Method::Uniform, Method::Spark, Method::Flame];
+
+    /// Lower-case name, as in `RESULT` lines.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Uniform => "uniform",
+            Method::Spark => "spark",
+            Method::Flame => "flame",
+        }
+    }
+}
+
+/// Where the sensed views look: the centre of the scene's objects other than the floor.
+fn look_target(scene: &Scene) -> [f64; 3] {
+    let pts: Vec<_> = scene
+        .objects
+        .iter()
+        .filter(|o| o.name != "floor")
+        .map(|o| o.pose.translation.vector)
+        .collect();
+    let n = pts.len().max(1) as f64;
+    let c = pts.iter().fold(nalgebra::Vector3::zeros(), |a, p| a + p) / n;
+    [c.x, c.y, c.z]
+}
+
+/// The scene as the head camera sees it (a few 320×240 views), as FLAME's input.
+pub fn map_of(scene: &Scene) -> anyhow::Result<OccupancyMap> {
+    Ok(sensed_map(
+        &scene.environment()?,
+        look_target(scene),
+        &quarter_vga(),
+        MapParams::default(),
+    ))
+}
+
+/// Learns one solved problem into both databases (problems without a path are skipped).
+pub fn train_one(
+    robot: &Robot,
+    problem: &Problem,
+    interpolate: Option<f64>,
+    spark: &mut SparkDb,
+    flame: &mut FlameDb,
+) -> anyhow::Result<()> {
+    let Some(path) = &problem.path else {
+        return Ok(());
+    };
+    let map = map_of(&problem.scene)?;
+    learn(
+        robot,
+        &problem.scene,
+        Some(&map),
+        path,
+        interpolate,
+        spark,
+        Some(flame),
+    );
+    Ok(())
+}
+
+/// A test problem with what planning it needs prepared once: its environment and sensed map.
+pub struct TestCase<'a> {
+    /// The problem.
+    pub problem: &'a Problem,
+    /// Its scene as collision geometry.
+    pub env: Environment,
+    /// Its sensed map (FLAME's input).
+    pub map: OccupancyMap,
+}
+
+/// Prepares test problems for [`plan_set`].
+pub fn prepare(problems: &[Problem]) -> anyhow::Result<Vec<TestCase<'_>>> {
+    problems
+        .iter()
+        .map(|p| {
+            Ok(TestCase {
+                problem: p,
+                env: p.scene.environment()?,
+                map: map_of(&p.scene)?,
+            })
+        })
+        .collect()
+}
+
+/// Planner settings of a benchmark run.
+#[derive(Debug, Clone)]
+pub struct EvalOptions {
+    /// Time limit per plan, seconds.
+    pub time_limit: f64,
+    /// Base seed (each problem uses seed + its index).
+    pub seed: u64,
+    /// RRT-Connect range.
+    pub range: f64,
+}
+
+/// How one method did on one test set.
+#[derive(Debug, Clone, Default)]
+pub struct Outcome {
+    /// Problems planned.
+    pub n: usize,
+    /// Problems solved within the time limit.
+    pub solved: usize,
+    /// Mean planning time including retrieval (a failure counts as the limit), ms.
+    pub mean_ms: f64,
+    /// Median of the same, ms.
+    pub median_ms: f64,
+    /// Mean retrieval time, µs.
+    pub retrieval_us: f64,
+    /// Mean database entries retrieved.
+    pub entries: f64,
+    /// Mean unique local samplers retrieved.
+    pub samplers: f64,
+}
+
+impl Outcome {
+    /// Header of [`Outcome::csv`] columns.
+    pub const CSV_HEADER: &'static str =
+        "n_test,solved,mean_ms,median_ms,retrieval_us,entries,samplers";
+
+    /// The outcome as CSV columns (see [`Outcome::CSV_HEADER`]).
+    pub fn csv(&self) -> String {
+        format!(
+            "{},{},{:.3},{:.3},{:.1},{:.1},{:.1}",
+            self.n,
+            self.solved,
+            self.mean_ms,
+            self.median_ms,
+            self.retrieval_us,
+            self.entries,
+            self.samplers
+        )
+    }
+
+    /// The `RESULT` keys after the problem count: `solved=… mean_ms=… median_ms=…
+    /// retrieval_us=…`.
+    pub fn result_keys(&self) -> String {
+        format!(
+            "solved={} mean_ms={:.3} median_ms={:.3} retrieval_us={:.1}",
+            self.solved, self.mean_ms, self.median_ms, self.retrieval_us
+        )
+    }
+}
+
+/// Retrieves for `case` with `method`.
+fn retrieve(
+    method: Method,
+    case: &TestCase,
+    params: &ExperienceParams,
+    spark: &SparkDb,
+    flame: &FlameDb,
+) -> Retrieval {
+    match method {
+        Method::Uniform => Retrieval::default(),
+        Method::Spark => spark.retrieve(&spark_pairs(&case.problem.scene, params)),
+        Method::Flame => flame.retrieve(&octoboxes(&case.map)),
+    }
+}
+
+/// Plans every case with `method`, using the databases for SPARK and FLAME.
+pub fn plan_set(
+    robot: &Robot,
+    cases: &[TestCase],
+    method: Method,
+    spark: &SparkDb,
+    flame: &FlameDb,
+    options: &EvalOptions,
+) -> Outcome {
+    let params = spark.params();
+    let (mut times, mut retrieval, mut entries, mut samplers) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let mut solved = 0;
+    for case in cases {
+        let t = Instant::now();
+        let r = retrieve(method, case, params, spark, flame);
+        entries.push(r.entries as f64);
+        samplers.push(r.samplers.len() as f64);
+        let mut sampler: Box<dyn Sampler> = match method {
+            Method::Uniform => Box::new(UniformSampler),
+            _ => Box::new(GlobalSampler::new(r, params.sigma, params.lambda)),
+        };
+        let retrieval_s = t.elapsed().as_secs_f64();
+        let p = case.problem;
+        let req = PlanRequest {
+            start: p.request.start.clone(),
+            goal: p.request.goal.clone(),
+            params: PlannerParams {
+                seed: options.seed + p.index as u64,
+                time_limit: Duration::from_secs_f64(options.time_limit),
+                simplify: false,
+                range: options.range,
+                ..Default::default()
+            },
+        };
+        match planning::plan(robot, &case.env, &req, sampler.as_mut()) {
+            Ok(_) => {
+                solved += 1;
+                times.push(t.elapsed().as_secs_f64() * 1e3);
+            }
+            Err(_) => times.push((options.time_limit + retrieval_s) * 1e3),
+        }
+        retrieval.push(retrieval_s * 1e6);
+    }
+    let (median_ms, mean_ms, _) = summary(&mut times);
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+    Outcome {
+        n: cases.len(),
+        solved,
+        mean_ms,
+        median_ms,
+        retrieval_us: mean(&retrieval),
+        entries: mean(&entries),
+        samplers: mean(&samplers),
+    }
+}

@@ -1,0 +1,596 @@
+//! `paper`: the paper's experiments on our generated shelf datasets.
+//!
+//! For each dataset (`shelf_zero`, `shelf_height`, `shelf_height_rot`) SPARK and FLAME learn
+//! incrementally from the training set's solved paths; at each training size N (10, 30, 50, 100,
+//! 300, 500) every method plans the same test problems, and SPARK retrieval is timed with the
+//! metric tree and the linear scan on the test scenes. Uniform sampling does not depend on N: it
+//! is planned once per dataset and reported at every N.
+//!
+//! Problem sets are read from `--problems DIR` (`DIR/<dataset>` and `DIR/<dataset>_test`, as
+//! `ember problems` writes them); a missing or too small set is generated there first (the
+//! generator is deterministic, so a larger set extends a smaller one).
+//!
+//! Writes tables to the terminal, `paper.csv` and `retrieval.csv`, and plots like the paper's
+//! figures (`time_<dataset>.svg/png`: mean planning time against N; `retrieval.svg/png`:
+//! retrieval time against database size) under `--out DIR`. Ends with one line per (dataset,
+//! method, N): `RESULT paper dataset=<d> method=<uniform|spark|flame> n_train=<N>
+//! n_test=<n> solved=<k> mean_ms=<f> median_ms=<f> retrieval_us=<f>`, and one per (dataset, N):
+//! `RESULT paper_retrieval dataset=<d> n_train=<N> spark_entries=<e> tree_us=<f> linear_us=<f>
+//! flame_entries=<e> flame_us=<f>`.
+//!
+//! `--quick`: N ∈ {10, 50, 100}, 25 test problems, 5 s limit — a few minutes in all.
+
+use crate::learning::{plan_set, prepare, train_one, EvalOptions, Method, Outcome, TestCase};
+use crate::plot::{self, Chart, Series};
+use crate::stats::summary;
+use ember_engine::experience::primitive::{octoboxes, spark_pairs};
+use ember_engine::experience::{ExperienceParams, FlameDb, SparkDb};
+use ember_engine::planning::PlannerParams;
+use ember_engine::problems::{self, GenerateOptions, Problem, ProblemSet};
+use ember_engine::robot::Robot;
+use ember_engine::world::map::MapParams;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Folder of the problem sets (generated there when missing).
+    #[arg(long, default_value = "ember-data/problems")]
+    problems: PathBuf,
+    /// Datasets, comma separated.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "shelf_zero,shelf_height,shelf_height_rot"
+    )]
+    datasets: Vec<String>,
+    /// Training sizes N, comma separated.
+    #[arg(long, value_delimiter = ',', default_value = "10,30,50,100,300,500")]
+    sizes: Vec<usize>,
+    /// Test problems per dataset.
+    #[arg(long, default_value_t = 100)]
+    n_test: usize,
+    /// Time limit per plan, seconds (a failure counts as the limit).
+    #[arg(long, default_value_t = 10.0)]
+    time_limit: f64,
+    /// Planner seed (each problem uses seed + index).
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// RRT-Connect range (default: the planner's).
+    #[arg(long)]
+    range: Option<f64>,
+    /// Where tables and plots go.
+    #[arg(long, default_value = "ember-data/paper")]
+    out: PathBuf,
+    /// Reduced run: N ∈ {10, 50, 100}, 25 test problems, 5 s limit.
+    #[arg(long)]
+    quick: bool,
+    /// Datasets that also run the transfer case (pick-trained experience on place problems).
+    #[arg(long, value_delimiter = ',', default_value = "shelf_height_rot")]
+    transfer: Vec<String>,
+    /// Skip the transfer case.
+    #[arg(long)]
+    no_transfer: bool,
+}
+
+/// The transfer case on one dataset: place problems (the robot holding the pick target),
+/// planned with uniform sampling, with experience learned on place problems, and with
+/// experience learned on pick problems (TX).
+struct TransferRun {
+    uniform: Outcome,
+    /// Per training size: (N, [SPARK, FLAME, SPARK (TX), FLAME (TX)]).
+    learned: Vec<(usize, [Outcome; 4])>,
+}
+
+/// Names of the transfer columns, as in `RESULT paper_transfer` lines.
+const TRANSFER_METHODS: [&str; 4] = ["spark", "flame", "spark_tx", "flame_tx"];
+
+/// Retrieval timings at one training size.
+struct RetrievalRow {
+    n_train: usize,
+    spark_entries: usize,
+    tree_us: f64,
+    linear_us: f64,
+    flame_entries: usize,
+    flame_us: f64,
+}
+
+/// Everything measured on one dataset.
+struct DatasetRun {
+    name: String,
+    n_test: usize,
+    uniform: Outcome,
+    /// Per training size: (N, SPARK, FLAME).
+    learned: Vec<(usize, Outcome, Outcome)>,
+    retrieval: Vec<RetrievalRow>,
+    transfer: Option<TransferRun>,
+}
+
+/// A generator progress callback redrawing `label: done/count` when `done` changes.
+fn progress_line(label: String, count: usize) -> impl FnMut(usize, usize) {
+    let mut shown = usize::MAX;
+    move |done, _| {
+        if done != shown {
+            shown = done;
+            eprint!("\r{label}: {done}/{count}");
+        }
+    }
+}
+
+/// Loads `root/<set>`, generating it first when it holds fewer than `count` problems.
+fn problem_set(
+    robot: &Robot,
+    root: &Path,
+    dataset: &str,
+    test: bool,
+    count: usize,
+) -> anyhow::Result<ProblemSet> {
+    let (name, seed) = if test {
+        (
+            problems::test_set_name(dataset),
+            1 + problems::TEST_SEED_OFFSET,
+        )
+    } else {
+        (dataset.to_string(), 1)
+    };
+    let dir = root.join(&name);
+    let have = ProblemSet::load(&dir, robot)
+        .map(|s| s.problems.len())
+        .unwrap_or(0);
+    if have < count {
+        let spec = problems::dataset(dataset)
+            .ok_or_else(|| problems::ProblemError::UnknownDataset(dataset.to_string()))?;
+        let t = Instant::now();
+        let options = GenerateOptions {
+            count,
+            seed,
+            ..Default::default()
+        };
+        let mut progress = progress_line(format!("generating {name}"), count);
+        problems::generate(robot, &spec, &options, &dir, &mut progress)?;
+        eprintln!(" ({:.0} s)", t.elapsed().as_secs_f64());
+    }
+    let mut set = ProblemSet::load(&dir, robot)?;
+    set.problems.truncate(count);
+    Ok(set)
+}
+
+/// SPARK retrieval with the tree and the linear scan, FLAME lookups: medians over the cases.
+fn time_retrieval(
+    n_train: usize,
+    cases: &[TestCase],
+    spark: &SparkDb,
+    flame: &FlameDb,
+    params: &ExperienceParams,
+) -> anyhow::Result<RetrievalRow> {
+    let (mut tree, mut linear, mut flame_t) = (Vec::new(), Vec::new(), Vec::new());
+    for case in cases {
+        let pairs = spark_pairs(&case.problem.scene, params);
+        let t = Instant::now();
+        let r = spark.retrieve(&pairs);
+        tree.push(t.elapsed().as_secs_f64() * 1e6);
+        let t = Instant::now();
+        let l = spark.retrieve_linear(&pairs);
+        linear.push(t.elapsed().as_secs_f64() * 1e6);
+        anyhow::ensure!(
+            r.entries == l.entries && r.samplers.len() == l.samplers.len(),
+            "metric tree and linear scan disagree on problem {}",
+            case.problem.index
+        );
+        let boxes = octoboxes(&case.map);
+        let t = Instant::now();
+        std::hint::black_box(flame.retrieve(&boxes));
+        flame_t.push(t.elapsed().as_secs_f64() * 1e6);
+    }
+    Ok(RetrievalRow {
+        n_train,
+        spark_entries: spark.len(),
+        tree_us: summary(&mut tree).0,
+        linear_us: summary(&mut linear).0,
+        flame_entries: flame.len(),
+        flame_us: summary(&mut flame_t).0,
+    })
+}
+
+/// Place problems of `dataset` for the holding robot: (train, test), generated in memory
+/// (seeded like the pick sets, plus 1: place scenes differ from pick scenes).
+fn place_sets(
+    holding: &Robot,
+    dataset: &str,
+    n_train: usize,
+    n_test: usize,
+) -> anyhow::Result<(Vec<Problem>, Vec<Problem>)> {
+    let spec = problems::dataset(dataset)
+        .ok_or_else(|| problems::ProblemError::UnknownDataset(dataset.to_string()))?;
+    let mut sets = Vec::new();
+    for (what, count, seed) in [
+        ("train", n_train, 2),
+        ("test", n_test, 2 + problems::TEST_SEED_OFFSET),
+    ] {
+        let t = Instant::now();
+        let options = GenerateOptions {
+            count,
+            seed,
+            ..Default::default()
+        };
+        let mut progress = progress_line(format!("generating {dataset} place {what}"), count);
+        let (set, report) = problems::place_problems(holding, &spec, &options, &mut progress)?;
+        eprintln!(
+            " ({:.0} s; {} candidates, {} without IK solution, {} unsolved)",
+            t.elapsed().as_secs_f64(),
+            report.attempts,
+            report.no_ik,
+            report.unsolved
+        );
+        anyhow::ensure!(
+            set.len() == count,
+            "only {} of {count} {dataset} place problems found",
+            set.len()
+        );
+        sets.push(set);
+    }
+    let test = sets.pop().expect("two sets");
+    Ok((sets.pop().expect("two sets"), test))
+}
+
+fn run_dataset(
+    robot: &Robot,
+    args: &Args,
+    dataset: &str,
+    sizes: &[usize],
+    n_test: usize,
+    options: &EvalOptions,
+) -> anyhow::Result<DatasetRun> {
+    let max_n = sizes.iter().copied().max().unwrap_or(0);
+    let train = problem_set(robot, &args.problems, dataset, false, max_n)?;
+    let test = problem_set(robot, &args.problems, dataset, true, n_test)?;
+    let holding = if !args.no_transfer && args.transfer.iter().any(|d| d == dataset) {
+        let spec = problems::dataset(dataset).expect("loaded above");
+        problems::holding_robot(robot, &spec)
+    } else {
+        None
+    };
+    let (place_train, place_test) = match &holding {
+        Some(h) => place_sets(h, dataset, max_n, n_test)?,
+        None => Default::default(),
+    };
+    let place_cases = prepare(&place_test)?;
+    let t = Instant::now();
+    let cases = prepare(&test.problems)?;
+    eprintln!(
+        "{dataset}: {} training, {} test problems ({} test maps rendered in {:.1} s)",
+        train.problems.len(),
+        cases.len(),
+        cases.len(),
+        t.elapsed().as_secs_f64()
+    );
+    let params = ExperienceParams::default();
+    let mut spark = SparkDb::new(params.clone());
+    let mut flame = FlameDb::new(params.clone(), MapParams::default().resolution);
+    let uniform = plan_set(robot, &cases, Method::Uniform, &spark, &flame, options);
+    eprintln!(
+        "  uniform: {}/{} solved, mean {:.2} ms",
+        uniform.solved, uniform.n, uniform.mean_ms
+    );
+    let mut transfer = holding.as_ref().map(|h| {
+        let uniform = plan_set(h, &place_cases, Method::Uniform, &spark, &flame, options);
+        eprintln!(
+            "  place, uniform: {}/{} solved, mean {:.2} ms",
+            uniform.solved, uniform.n, uniform.mean_ms
+        );
+        TransferRun {
+            uniform,
+            learned: Vec::new(),
+        }
+    });
+    let mut place_spark = SparkDb::new(params.clone());
+    let mut place_flame = FlameDb::new(params.clone(), MapParams::default().resolution);
+    let mut place_trained = 0;
+    let mut learned = Vec::new();
+    let mut retrieval = Vec::new();
+    let mut trained = 0;
+    for &n in sizes {
+        let t = Instant::now();
+        for p in &train.problems[trained..n.min(train.problems.len())] {
+            train_one(robot, p, None, &mut spark, &mut flame)?;
+        }
+        trained = n.min(train.problems.len());
+        let train_s = t.elapsed().as_secs_f64();
+        let s = plan_set(robot, &cases, Method::Spark, &spark, &flame, options);
+        let f = plan_set(robot, &cases, Method::Flame, &spark, &flame, options);
+        eprintln!(
+            "  N={n:<4} (+{train_s:.1} s training; SPARK {} entries, FLAME {}): spark {:.2} ms, flame {:.2} ms",
+            spark.len(),
+            flame.len(),
+            s.mean_ms,
+            f.mean_ms
+        );
+        retrieval.push(time_retrieval(n, &cases, &spark, &flame, &params)?);
+        learned.push((n, s, f));
+        if let (Some(h), Some(run)) = (&holding, &mut transfer) {
+            for p in &place_train[place_trained..n.min(place_train.len())] {
+                train_one(h, p, None, &mut place_spark, &mut place_flame)?;
+            }
+            place_trained = n.min(place_train.len());
+            let eval = |m, s: &SparkDb, f: &FlameDb| plan_set(h, &place_cases, m, s, f, options);
+            let row = [
+                eval(Method::Spark, &place_spark, &place_flame),
+                eval(Method::Flame, &place_spark, &place_flame),
+                eval(Method::Spark, &spark, &flame),
+                eval(Method::Flame, &spark, &flame),
+            ];
+            eprintln!(
+                "  place N={n:<4}: spark {:.2}, flame {:.2}, spark (TX) {:.2}, flame (TX) {:.2} ms",
+                row[0].mean_ms, row[1].mean_ms, row[2].mean_ms, row[3].mean_ms
+            );
+            run.learned.push((n, row));
+        }
+    }
+    Ok(DatasetRun {
+        name: dataset.to_string(),
+        n_test: cases.len(),
+        uniform,
+        learned,
+        retrieval,
+        transfer,
+    })
+}
+
+fn print_tables(run: &DatasetRun) {
+    println!(
+        "\n{} ({} test problems; planning time includes retrieval; a failure counts as the limit)",
+        run.name, run.n_test
+    );
+    println!(
+        "{:>5} | {:>22} | {:>22} | {:>22} | {:>13}",
+        "N",
+        "uniform solved/mean/med",
+        "SPARK solved/mean/med",
+        "FLAME solved/mean/med",
+        "gain S / F"
+    );
+    let cell = |o: &Outcome| format!("{:>3} {:>8.2} {:>8.2}", o.solved, o.mean_ms, o.median_ms);
+    for (n, s, f) in &run.learned {
+        println!(
+            "{n:>5} | {:>22} | {:>22} | {:>22} | {:>5.2}x {:>5.2}x",
+            cell(&run.uniform),
+            cell(s),
+            cell(f),
+            run.uniform.mean_ms / s.mean_ms,
+            run.uniform.mean_ms / f.mean_ms
+        );
+    }
+    println!(
+        "{:>5} | {:>9} {:>9} {:>9} | {:>9} {:>9} | {:>9} {:>9}",
+        "N", "entries", "tree_us", "linear_us", "retr_S", "samplers", "FLAME", "flame_us"
+    );
+    for (r, (_, s, _)) in run.retrieval.iter().zip(&run.learned) {
+        println!(
+            "{:>5} | {:>9} {:>9.1} {:>9.1} | {:>9.0} {:>9.0} | {:>9} {:>9.1}",
+            r.n_train,
+            r.spark_entries,
+            r.tree_us,
+            r.linear_us,
+            s.entries,
+            s.samplers,
+            r.flame_entries,
+            r.flame_us
+        );
+    }
+}
+
+fn print_transfer(name: &str, t: &TransferRun) {
+    println!(
+        "\n{name}, transfer: place problems with the target in the gripper ({} test problems); TX = learned on pick problems",
+        t.uniform.n
+    );
+    println!(
+        "{:>5} | {:>20} | {:>20} | {:>20} | {:>20} | {:>20}",
+        "N", "uniform", "SPARK", "FLAME", "SPARK (TX)", "FLAME (TX)"
+    );
+    let cell = |o: &Outcome| format!("{:>3} {:>7.2} {:>7.2}", o.solved, o.mean_ms, o.median_ms);
+    for (n, row) in &t.learned {
+        println!(
+            "{n:>5} | {:>20} | {:>20} | {:>20} | {:>20} | {:>20}",
+            cell(&t.uniform),
+            cell(&row[0]),
+            cell(&row[1]),
+            cell(&row[2]),
+            cell(&row[3])
+        );
+    }
+}
+
+fn write_outputs(out: &Path, runs: &[DatasetRun]) -> anyhow::Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(out)?;
+    let header = format!("dataset,method,n_train,{}\n", Outcome::CSV_HEADER);
+    let (mut csv, mut tcsv) = (header.clone(), header);
+    let mut rcsv =
+        String::from("dataset,n_train,spark_entries,tree_us,linear_us,flame_entries,flame_us\n");
+    let mut files = Vec::new();
+    let mut retrieval_series = Vec::new();
+    for run in runs {
+        if let Some(t) = &run.transfer {
+            let mut series: Vec<Series> = ["uniform", "SPARK", "FLAME", "SPARK (TX)", "FLAME (TX)"]
+                .iter()
+                .map(|name| Series {
+                    name: name.to_string(),
+                    points: Vec::new(),
+                })
+                .collect();
+            for (n, row) in &t.learned {
+                let outcomes = std::iter::once(("uniform", &t.uniform))
+                    .chain(TRANSFER_METHODS.iter().copied().zip(row.iter()));
+                for (i, (m, o)) in outcomes.enumerate() {
+                    writeln!(tcsv, "{},{m},{n},{}", run.name, o.csv())?;
+                    series[i].points.push((*n as f64, o.mean_ms));
+                }
+            }
+            let chart = Chart {
+                title: &format!(
+                    "{}, place with the object held: mean planning time",
+                    run.name
+                ),
+                x_label: "training problems N",
+                y_label: "mean time (ms)",
+                log_x: true,
+                log_y: false,
+                series,
+            };
+            files.extend(plot::write(
+                &out.join(format!("transfer_{}", run.name)),
+                &chart,
+            )?);
+        }
+        for (n, s, f) in &run.learned {
+            for (m, o) in [("uniform", &run.uniform), ("spark", s), ("flame", f)] {
+                writeln!(csv, "{},{m},{n},{}", run.name, o.csv())?;
+            }
+        }
+        for r in &run.retrieval {
+            writeln!(
+                rcsv,
+                "{},{},{},{:.1},{:.1},{},{:.1}",
+                run.name,
+                r.n_train,
+                r.spark_entries,
+                r.tree_us,
+                r.linear_us,
+                r.flame_entries,
+                r.flame_us
+            )?;
+        }
+        let line = |f: &dyn Fn(&(usize, Outcome, Outcome)) -> f64| {
+            run.learned.iter().map(|e| (e.0 as f64, f(e))).collect()
+        };
+        let chart = Chart {
+            title: &format!("{}: mean planning time (incl. retrieval)", run.name),
+            x_label: "training problems N",
+            y_label: "mean time (ms)",
+            log_x: true,
+            log_y: false,
+            series: vec![
+                Series {
+                    name: "uniform".into(),
+                    points: line(&|_| run.uniform.mean_ms),
+                },
+                Series {
+                    name: "SPARK".into(),
+                    points: line(&|e| e.1.mean_ms),
+                },
+                Series {
+                    name: "FLAME".into(),
+                    points: line(&|e| e.2.mean_ms),
+                },
+            ],
+        };
+        files.extend(plot::write(
+            &out.join(format!("time_{}", run.name)),
+            &chart,
+        )?);
+        let pts = |f: &dyn Fn(&RetrievalRow) -> f64| {
+            run.retrieval
+                .iter()
+                .map(|r| (r.spark_entries as f64, f(r)))
+                .collect()
+        };
+        retrieval_series.push(Series {
+            name: format!("{} tree", run.name),
+            points: pts(&|r| r.tree_us),
+        });
+        retrieval_series.push(Series {
+            name: format!("{} linear", run.name),
+            points: pts(&|r| r.linear_us),
+        });
+    }
+    let chart = Chart {
+        title: "SPARK retrieval time per query scene",
+        x_label: "database entries",
+        y_label: "median retrieval time (µs)",
+        log_x: true,
+        log_y: true,
+        series: retrieval_series,
+    };
+    files.extend(plot::write(&out.join("retrieval"), &chart)?);
+    for (name, text) in [
+        ("paper.csv", csv),
+        ("retrieval.csv", rcsv),
+        ("transfer.csv", tcsv),
+    ] {
+        std::fs::write(out.join(name), text)?;
+        files.push(out.join(name));
+    }
+    Ok(files)
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let robot = Robot::builtin("fetch")?;
+    let (mut sizes, n_test, time_limit) = if args.quick {
+        (vec![10, 50, 100], 25, 5.0)
+    } else {
+        (args.sizes.clone(), args.n_test, args.time_limit)
+    };
+    sizes.sort_unstable();
+    sizes.dedup();
+    anyhow::ensure!(
+        !sizes.is_empty() && sizes[0] > 0,
+        "--sizes needs positive sizes"
+    );
+    let options = EvalOptions {
+        time_limit,
+        seed: args.seed,
+        range: args.range.unwrap_or(PlannerParams::default().range),
+    };
+    let t = Instant::now();
+    let mut runs = Vec::new();
+    for dataset in &args.datasets {
+        let run = run_dataset(&robot, &args, dataset, &sizes, n_test, &options)?;
+        print_tables(&run);
+        if let Some(t) = &run.transfer {
+            print_transfer(&run.name, t);
+        }
+        runs.push(run);
+    }
+    let files = write_outputs(&args.out, &runs)?;
+    println!("\nwritten ({:.0} s in all):", t.elapsed().as_secs_f64());
+    for f in files {
+        println!("  {}", f.display());
+    }
+    for run in &runs {
+        for (n, s, f) in &run.learned {
+            for (m, o) in [("uniform", &run.uniform), ("spark", s), ("flame", f)] {
+                println!(
+                    "RESULT paper dataset={} method={m} n_train={n} n_test={} {}",
+                    run.name,
+                    o.n,
+                    o.result_keys()
+                );
+            }
+        }
+    }
+    for run in &runs {
+        let Some(t) = &run.transfer else { continue };
+        for (n, row) in &t.learned {
+            let outcomes = std::iter::once(("uniform", &t.uniform))
+                .chain(TRANSFER_METHODS.iter().copied().zip(row.iter()));
+            for (m, o) in outcomes {
+                println!(
+                    "RESULT paper_transfer dataset={} method={m} n_train={n} n_test={} {}",
+                    run.name,
+                    o.n,
+                    o.result_keys()
+                );
+            }
+        }
+    }
+    for run in &runs {
+        for r in &run.retrieval {
+            println!(
+                "RESULT paper_retrieval dataset={} n_train={} spark_entries={} tree_us={:.1} linear_us={:.1} flame_entries={} flame_us={:.1}",
+                run.name, r.n_train, r.spark_entries, r.tree_us, r.linear_us, r.flame_entries, r.flame_us
+            );
+        }
+    }
+    Ok(())
+}
