@@ -72,6 +72,15 @@ pub struct Args {
     /// Skip the transfer case.
     #[arg(long)]
     no_transfer: bool,
+    /// Also test path states every STEP (configuration distance) for criticality.
+    #[arg(long)]
+    interpolate: Option<f64>,
+    /// Override σ (default 0.2, the paper's).
+    #[arg(long)]
+    sigma: Option<f64>,
+    /// Override λ (default 0.5, the paper's).
+    #[arg(long)]
+    lambda: Option<f64>,
 }
 
 /// The transfer case on one dataset: place problems (the robot holding the pick target),
@@ -265,7 +274,12 @@ fn run_dataset(
         cases.len(),
         t.elapsed().as_secs_f64()
     );
-    let params = ExperienceParams::default();
+    let defaults = ExperienceParams::default();
+    let params = ExperienceParams {
+        sigma: args.sigma.unwrap_or(defaults.sigma),
+        lambda: args.lambda.unwrap_or(defaults.lambda),
+        ..defaults
+    };
     let mut spark = SparkDb::new(params.clone());
     let mut flame = FlameDb::new(params.clone(), MapParams::default().resolution);
     let uniform = plan_set(robot, &cases, Method::Uniform, &spark, &flame, options);
@@ -293,7 +307,7 @@ fn run_dataset(
     for &n in sizes {
         let t = Instant::now();
         for p in &train.problems[trained..n.min(train.problems.len())] {
-            train_one(robot, p, None, &mut spark, &mut flame)?;
+            train_one(robot, p, args.interpolate, &mut spark, &mut flame)?;
         }
         trained = n.min(train.problems.len());
         let train_s = t.elapsed().as_secs_f64();
@@ -310,7 +324,7 @@ fn run_dataset(
         learned.push((n, s, f));
         if let (Some(h), Some(run)) = (&holding, &mut transfer) {
             for p in &place_train[place_trained..n.min(place_train.len())] {
-                train_one(h, p, None, &mut place_spark, &mut place_flame)?;
+                train_one(h, p, args.interpolate, &mut place_spark, &mut place_flame)?;
             }
             place_trained = n.min(place_train.len());
             let eval = |m, s: &SparkDb, f: &FlameDb| plan_set(h, &place_cases, m, s, f, options);

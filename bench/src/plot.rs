@@ -190,3 +190,45 @@ pub fn write(stem: &Path, chart: &Chart) -> anyhow::Result<Vec<PathBuf>> {
         .map_err(|e| anyhow::anyhow!("plot {}: {e}", png.display()))?;
     Ok(vec![svg, png])
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn charts_are_written_as_svg_and_png() {
+        let dir = std::env::temp_dir().join(format!("ember-plot-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let chart = Chart {
+            title: "retrieval",
+            x_label: "entries",
+            y_label: "µs",
+            log_x: true,
+            log_y: true,
+            series: vec![
+                Series {
+                    name: "tree".into(),
+                    points: vec![(100.0, 20.0), (1000.0, 90.0), (10000.0, 700.0)],
+                },
+                // Non-positive and non-finite points cannot go on log axes: dropped, no error.
+                Series {
+                    name: "scan".into(),
+                    points: vec![(0.0, 1.0), (100.0, f64::NAN), (1000.0, 400.0)],
+                },
+            ],
+        };
+        let files = write(&dir.join("chart"), &chart).unwrap();
+        if !font() {
+            // CI installs a font; elsewhere a machine without one skips plots by design.
+            assert!(std::env::var_os("CI").is_none(), "CI must have a font");
+            assert!(files.is_empty());
+            return;
+        }
+        assert_eq!(files, vec![dir.join("chart.svg"), dir.join("chart.png")]);
+        let svg = std::fs::read_to_string(&files[0]).unwrap();
+        assert!(svg.contains("tree") && svg.contains("scan") && svg.contains("retrieval"));
+        let png = std::fs::read(&files[1]).unwrap();
+        assert_eq!(&png[1..4], b"PNG");
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}
