@@ -5,7 +5,7 @@
 //!   with a linear scan kept as the test oracle. Pairs equal up to 1 cm share one entry.
 //! - [`FlameDb`]: exact match of octobox position and mask (a hash lookup).
 
-use super::primitive::{BoxPrimitive, OctoboxPrimitive, SparkPair};
+use super::primitive::{raw_distance, BoxPrimitive, OctoboxPrimitive, RawBox, SparkPair};
 use super::vptree::VpTree;
 use super::ExperienceParams;
 use crate::world::map::BlockKey;
@@ -86,21 +86,23 @@ pub struct SparkDb {
 /// Distinct boxes, numbered in order of arrival (bit-exact equality).
 #[derive(Debug, Clone, Default)]
 struct Boxes {
-    list: Vec<BoxPrimitive>,
+    list: Vec<RawBox>,
     ids: FxHashMap<[u64; 10], u32>,
 }
 
 impl Boxes {
     fn id(&mut self, b: &BoxPrimitive) -> u32 {
-        let t = b.pose.translation.vector;
-        let q = b.pose.rotation.coords;
-        let bits = [
-            t.x, t.y, t.z, q.x, q.y, q.z, q.w, b.size[0], b.size[1], b.size[2],
-        ]
-        .map(f64::to_bits);
+        let raw = b.raw();
+        let mut bits = [0u64; 10];
+        for (slot, v) in bits
+            .iter_mut()
+            .zip(raw.t.iter().chain(&raw.q).chain(&raw.s))
+        {
+            *slot = v.to_bits();
+        }
         let next = self.list.len() as u32;
         *self.ids.entry(bits).or_insert_with(|| {
-            self.list.push(*b);
+            self.list.push(raw);
             next
         })
     }
@@ -202,16 +204,16 @@ impl SparkDb {
             .iter()
             .map(|p| [query.id(&p.a), query.id(&p.b)])
             .collect();
+        // Every (query box, stored box) distance, computed in one branch-free pass: in the
+        // low-variation scenes SPARK works on, the search needs most of them anyway.
         let nb = self.boxes.list.len();
-        let memo = vec![std::cell::Cell::new(f64::NAN); query.list.len() * nb];
-        let box_distance = |q: u32, e: u32| {
-            let cell = &memo[q as usize * nb + e as usize];
-            if cell.get().is_nan() {
-                let (qb, eb) = (&query.list[q as usize], &self.boxes.list[e as usize]);
-                cell.set(qb.distance(eb, &self.params));
+        let mut table = vec![0.0; query.list.len() * nb];
+        for (row, qb) in table.chunks_exact_mut(nb.max(1)).zip(&query.list) {
+            for (d, eb) in row.iter_mut().zip(&self.boxes.list) {
+                *d = raw_distance(qb, eb, &self.params);
             }
-            cell.get()
-        };
+        }
+        let box_distance = |q: u32, e: u32| table[q as usize * nb + e as usize];
         self.gather(primitives, |k, _| {
             let [qa, qb] = ids[k];
             let d = |i: usize| {

@@ -32,28 +32,57 @@ impl BoxPrimitive {
 
     /// Box distance: `w_s·(w_T·‖Δt‖ + (1−w_T)·angle) + (1−w_s)·‖Δsize‖`, a metric.
     pub fn distance(&self, other: &BoxPrimitive, p: &ExperienceParams) -> f64 {
-        let dt = (self.pose.translation.vector - other.pose.translation.vector).norm();
-        // Rotation angle between the orientations, 2·acos(|q₁·q₂|); below ~3 mrad from the
-        // chord ‖q₁ − s·q₂‖ (s the sign of q₁·q₂), where acos loses its accuracy.
-        let (q1, q2) = (self.pose.rotation.coords, other.pose.rotation.coords);
-        let dot = q1.dot(&q2);
-        let angle = if dot.abs() > 1.0 - 1e-6 {
-            let chord = (q1 - q2 * dot.signum()).norm();
-            2.0 * chord + chord.powi(3) / 12.0
-        } else {
-            2.0 * acos_unit(dot.abs())
-        };
-        let ds = ((self.size[0] - other.size[0]).powi(2)
-            + (self.size[1] - other.size[1]).powi(2)
-            + (self.size[2] - other.size[2]).powi(2))
-        .sqrt();
-        p.w_s * (p.w_t * dt + (1.0 - p.w_t) * angle) + (1.0 - p.w_s) * ds
+        raw_distance(&self.raw(), &other.raw(), p)
     }
+
+    /// The box as plain numbers (the form batched distance computations use).
+    pub(crate) fn raw(&self) -> RawBox {
+        let t = self.pose.translation.vector;
+        let q = self.pose.rotation.coords;
+        RawBox {
+            t: [t.x, t.y, t.z],
+            q: [q.x, q.y, q.z, q.w],
+            s: self.size,
+        }
+    }
+}
+
+/// A box as plain numbers: translation, unit quaternion (x, y, z, w) and size.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct RawBox {
+    pub t: [f64; 3],
+    pub q: [f64; 4],
+    pub s: [f64; 3],
+}
+
+/// The box distance on raw boxes: the single formula behind [`BoxPrimitive::distance`] and the
+/// retrieval's batched distances, so both give the same bits.
+#[inline(always)]
+pub(crate) fn raw_distance(a: &RawBox, b: &RawBox, p: &ExperienceParams) -> f64 {
+    let sq = |x: f64| x * x;
+    let dt = (sq(a.t[0] - b.t[0]) + sq(a.t[1] - b.t[1]) + sq(a.t[2] - b.t[2])).sqrt();
+    // Rotation angle between the orientations, 2·acos(|q₁·q₂|); below ~3 mrad from the chord
+    // ‖q₁ − s·q₂‖ (s the sign of q₁·q₂), where acos loses its accuracy.
+    let dot = a.q[0] * b.q[0] + a.q[1] * b.q[1] + a.q[2] * b.q[2] + a.q[3] * b.q[3];
+    let angle = if dot.abs() > 1.0 - 1e-6 {
+        let s = if dot < 0.0 { -1.0 } else { 1.0 };
+        let chord = (sq(a.q[0] - s * b.q[0])
+            + sq(a.q[1] - s * b.q[1])
+            + sq(a.q[2] - s * b.q[2])
+            + sq(a.q[3] - s * b.q[3]))
+        .sqrt();
+        2.0 * chord + chord * chord * chord / 12.0
+    } else {
+        2.0 * acos_unit(dot.abs())
+    };
+    let ds = (sq(a.s[0] - b.s[0]) + sq(a.s[1] - b.s[1]) + sq(a.s[2] - b.s[2])).sqrt();
+    p.w_s * (p.w_t * dt + (1.0 - p.w_t) * angle) + (1.0 - p.w_s) * ds
 }
 
 /// `acos(x)` for `x` in [0, 1] (clamped) to within 2e-8 rad (Abramowitz & Stegun 4.4.46): the
 /// retrieval's hot spot, several times cheaper than libm's. The metric tree prunes with a slack
 /// far above this error, so tree and linear scan stay identical.
+#[inline(always)]
 fn acos_unit(x: f64) -> f64 {
     const A: [f64; 8] = [
         1.570_796_305_0,
