@@ -122,9 +122,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     for dir in &args.test {
         let set = ProblemSet::load(dir, &robot)?;
-        let cases = prepare(&set.problems)?;
+        let cases = prepare(&robot, &set.problems)?;
         for method in Method::ALL {
-            let o = plan_set(&robot, &cases, method, &spark, &flame, &options);
+            let o = plan_set(&cases, method, &spark, &flame, &options);
             println!(
                 "{:<22} {:<8} {:>5} {:>6} {:>10.3} {:>10.3} {:>13.1} {:>9.1} {:>9.1}",
                 set.name,

@@ -18,6 +18,7 @@ use ember_engine::scene::Scene;
 use ember_engine::world::map::{MapParams, OccupancyMap};
 use ember_engine::world::Environment;
 use ember_sensors::{quarter_vga, sensed_map};
+use std::borrow::Cow;
 use std::time::{Duration, Instant};
 
 /// A sampling method under test.
@@ -79,9 +80,10 @@ pub fn train_one(
     let Some(path) = &problem.path else {
         return Ok(());
     };
+    let robot = problem.scene.robot(robot)?;
     let map = map_of(&problem.scene)?;
     learn(
-        robot,
+        &robot,
         &problem.scene,
         Some(&map),
         path,
@@ -92,10 +94,13 @@ pub fn train_one(
     Ok(())
 }
 
-/// A test problem with what planning it needs prepared once: its environment and sensed map.
+/// A test problem with what planning it needs prepared once: its robot (carrying what the
+/// scene attaches), environment and sensed map.
 pub struct TestCase<'a> {
     /// The problem.
     pub problem: &'a Problem,
+    /// The robot as the problem's scene has it.
+    pub robot: Cow<'a, Robot>,
     /// Its scene as collision geometry.
     pub env: Environment,
     /// Its sensed map (FLAME's input).
@@ -103,12 +108,13 @@ pub struct TestCase<'a> {
 }
 
 /// Prepares test problems for [`plan_set`].
-pub fn prepare(problems: &[Problem]) -> anyhow::Result<Vec<TestCase<'_>>> {
+pub fn prepare<'a>(robot: &'a Robot, problems: &'a [Problem]) -> anyhow::Result<Vec<TestCase<'a>>> {
     problems
         .iter()
         .map(|p| {
             Ok(TestCase {
                 problem: p,
+                robot: p.scene.robot(robot)?,
                 env: p.scene.environment()?,
                 map: map_of(&p.scene)?,
             })
@@ -192,7 +198,6 @@ fn retrieve(
 
 /// Plans every case with `method`, using the databases for SPARK and FLAME.
 pub fn plan_set(
-    robot: &Robot,
     cases: &[TestCase],
     method: Method,
     spark: &SparkDb,
@@ -225,7 +230,7 @@ pub fn plan_set(
                 ..Default::default()
             },
         };
-        match planning::plan(robot, &case.env, &req, sampler.as_mut()) {
+        match planning::plan(&case.robot, &case.env, &req, sampler.as_mut()) {
             Ok(_) => {
                 solved += 1;
                 times.push(t.elapsed().as_secs_f64() * 1e3);

@@ -6,9 +6,10 @@
 //! metric tree and the linear scan on the test scenes. Uniform sampling does not depend on N: it
 //! is planned once per dataset and reported at every N.
 //!
-//! Problem sets are read from `--problems DIR` (`DIR/<dataset>` and `DIR/<dataset>_test`, as
-//! `ember problems` writes them); a missing or too small set is generated there first (the
-//! generator is deterministic, so a larger set extends a smaller one).
+//! Problem sets are read from `--problems DIR` (`DIR/<dataset>` and `DIR/<dataset>_test`, and
+//! for the transfer case `DIR/<dataset>_place[_test]`, as `ember problems [--place]` writes them);
+//! a missing or too small set is generated there first (the generator is deterministic, so a
+//! larger set extends a smaller one).
 //!
 //! Writes tables to the terminal, `paper.csv` and `retrieval.csv`, and plots like the paper's
 //! figures (`time_<dataset>.svg/png`: mean planning time against N; `retrieval.svg/png`:
@@ -26,7 +27,7 @@ use crate::stats::summary;
 use ember_engine::experience::primitive::{octoboxes, spark_pairs};
 use ember_engine::experience::{ExperienceParams, FlameDb, SparkDb};
 use ember_engine::planning::PlannerParams;
-use ember_engine::problems::{self, GenerateOptions, Problem, ProblemSet};
+use ember_engine::problems::{self, GenerateOptions, ProblemSet, Task};
 use ember_engine::robot::Robot;
 use ember_engine::world::map::MapParams;
 use std::fmt::Write as _;
@@ -127,22 +128,17 @@ fn progress_line(label: String, count: usize) -> impl FnMut(usize, usize) {
     }
 }
 
-/// Loads `root/<set>`, generating it first when it holds fewer than `count` problems.
+/// Loads the `task` set of `dataset` (its test set when `test`) from `root`, generating it
+/// first when it holds fewer than `count` problems.
 fn problem_set(
     robot: &Robot,
     root: &Path,
     dataset: &str,
+    task: Task,
     test: bool,
     count: usize,
 ) -> anyhow::Result<ProblemSet> {
-    let (name, seed) = if test {
-        (
-            problems::test_set_name(dataset),
-            1 + problems::TEST_SEED_OFFSET,
-        )
-    } else {
-        (dataset.to_string(), 1)
-    };
+    let name = task.set_name(dataset, test);
     let dir = root.join(&name);
     let have = ProblemSet::load(&dir, robot)
         .map(|s| s.problems.len())
@@ -153,12 +149,24 @@ fn problem_set(
         let t = Instant::now();
         let options = GenerateOptions {
             count,
-            seed,
+            seed: task.set_seed(1, test),
+            task,
             ..Default::default()
         };
         let mut progress = progress_line(format!("generating {name}"), count);
-        problems::generate(robot, &spec, &options, &dir, &mut progress)?;
-        eprintln!(" ({:.0} s)", t.elapsed().as_secs_f64());
+        let report = problems::generate(robot, &spec, &options, &dir, &mut progress)?;
+        eprintln!(
+            " ({:.0} s; {} candidates, {} without IK solution, {} unsolved)",
+            t.elapsed().as_secs_f64(),
+            report.attempts,
+            report.no_ik,
+            report.unsolved
+        );
+        anyhow::ensure!(
+            report.written == count,
+            "only {} of {count} problems of {name} found",
+            report.written
+        );
     }
     let mut set = ProblemSet::load(&dir, robot)?;
     set.problems.truncate(count);
@@ -202,47 +210,6 @@ fn time_retrieval(
     })
 }
 
-/// Place problems of `dataset` for the holding robot: (train, test), generated in memory
-/// (seeded like the pick sets, plus 1: place scenes differ from pick scenes).
-fn place_sets(
-    holding: &Robot,
-    dataset: &str,
-    n_train: usize,
-    n_test: usize,
-) -> anyhow::Result<(Vec<Problem>, Vec<Problem>)> {
-    let spec = problems::dataset(dataset)
-        .ok_or_else(|| problems::ProblemError::UnknownDataset(dataset.to_string()))?;
-    let mut sets = Vec::new();
-    for (what, count, seed) in [
-        ("train", n_train, 2),
-        ("test", n_test, 2 + problems::TEST_SEED_OFFSET),
-    ] {
-        let t = Instant::now();
-        let options = GenerateOptions {
-            count,
-            seed,
-            ..Default::default()
-        };
-        let mut progress = progress_line(format!("generating {dataset} place {what}"), count);
-        let (set, report) = problems::place_problems(holding, &spec, &options, &mut progress)?;
-        eprintln!(
-            " ({:.0} s; {} candidates, {} without IK solution, {} unsolved)",
-            t.elapsed().as_secs_f64(),
-            report.attempts,
-            report.no_ik,
-            report.unsolved
-        );
-        anyhow::ensure!(
-            set.len() == count,
-            "only {} of {count} {dataset} place problems found",
-            set.len()
-        );
-        sets.push(set);
-    }
-    let test = sets.pop().expect("two sets");
-    Ok((sets.pop().expect("two sets"), test))
-}
-
 fn run_dataset(
     robot: &Robot,
     args: &Args,
@@ -252,21 +219,21 @@ fn run_dataset(
     options: &EvalOptions,
 ) -> anyhow::Result<DatasetRun> {
     let max_n = sizes.iter().copied().max().unwrap_or(0);
-    let train = problem_set(robot, &args.problems, dataset, false, max_n)?;
-    let test = problem_set(robot, &args.problems, dataset, true, n_test)?;
-    let holding = if !args.no_transfer && args.transfer.iter().any(|d| d == dataset) {
-        let spec = problems::dataset(dataset).expect("loaded above");
-        problems::holding_robot(robot, &spec)
+    let set = |task, test, count| problem_set(robot, &args.problems, dataset, task, test, count);
+    let train = set(Task::Pick, false, max_n)?;
+    let test = set(Task::Pick, true, n_test)?;
+    let transfer_here = !args.no_transfer && args.transfer.iter().any(|d| d == dataset);
+    let (place_train, place_test) = if transfer_here {
+        (
+            set(Task::Place, false, max_n)?.problems,
+            set(Task::Place, true, n_test)?.problems,
+        )
     } else {
-        None
+        Default::default()
     };
-    let (place_train, place_test) = match &holding {
-        Some(h) => place_sets(h, dataset, max_n, n_test)?,
-        None => Default::default(),
-    };
-    let place_cases = prepare(&place_test)?;
+    let place_cases = prepare(robot, &place_test)?;
     let t = Instant::now();
-    let cases = prepare(&test.problems)?;
+    let cases = prepare(robot, &test.problems)?;
     eprintln!(
         "{dataset}: {} training, {} test problems ({} test maps rendered in {:.1} s)",
         train.problems.len(),
@@ -282,13 +249,13 @@ fn run_dataset(
     };
     let mut spark = SparkDb::new(params.clone());
     let mut flame = FlameDb::new(params.clone(), MapParams::default().resolution);
-    let uniform = plan_set(robot, &cases, Method::Uniform, &spark, &flame, options);
+    let uniform = plan_set(&cases, Method::Uniform, &spark, &flame, options);
     eprintln!(
         "  uniform: {}/{} solved, mean {:.2} ms",
         uniform.solved, uniform.n, uniform.mean_ms
     );
-    let mut transfer = holding.as_ref().map(|h| {
-        let uniform = plan_set(h, &place_cases, Method::Uniform, &spark, &flame, options);
+    let mut transfer = transfer_here.then(|| {
+        let uniform = plan_set(&place_cases, Method::Uniform, &spark, &flame, options);
         eprintln!(
             "  place, uniform: {}/{} solved, mean {:.2} ms",
             uniform.solved, uniform.n, uniform.mean_ms
@@ -311,8 +278,8 @@ fn run_dataset(
         }
         trained = n.min(train.problems.len());
         let train_s = t.elapsed().as_secs_f64();
-        let s = plan_set(robot, &cases, Method::Spark, &spark, &flame, options);
-        let f = plan_set(robot, &cases, Method::Flame, &spark, &flame, options);
+        let s = plan_set(&cases, Method::Spark, &spark, &flame, options);
+        let f = plan_set(&cases, Method::Flame, &spark, &flame, options);
         eprintln!(
             "  N={n:<4} (+{train_s:.1} s training; SPARK {} entries, FLAME {}): spark {:.2} ms, flame {:.2} ms",
             spark.len(),
@@ -322,12 +289,18 @@ fn run_dataset(
         );
         retrieval.push(time_retrieval(n, &cases, &spark, &flame, &params)?);
         learned.push((n, s, f));
-        if let (Some(h), Some(run)) = (&holding, &mut transfer) {
+        if let Some(run) = &mut transfer {
             for p in &place_train[place_trained..n.min(place_train.len())] {
-                train_one(h, p, args.interpolate, &mut place_spark, &mut place_flame)?;
+                train_one(
+                    robot,
+                    p,
+                    args.interpolate,
+                    &mut place_spark,
+                    &mut place_flame,
+                )?;
             }
             place_trained = n.min(place_train.len());
-            let eval = |m, s: &SparkDb, f: &FlameDb| plan_set(h, &place_cases, m, s, f, options);
+            let eval = |m, s: &SparkDb, f: &FlameDb| plan_set(&place_cases, m, s, f, options);
             let row = [
                 eval(Method::Spark, &place_spark, &place_flame),
                 eval(Method::Flame, &place_spark, &place_flame),

@@ -68,9 +68,14 @@ pub struct ProblemsArgs {
     /// Output folder.
     #[arg(long, default_value = "problems")]
     pub out: PathBuf,
-    /// Seed (the test set uses seed + 1000).
+    /// Seed (the test set uses seed + 1000, place sets seed + 1).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Place problems instead of picks (OUT/<dataset>_place[_test]): the robot starts holding
+    /// the target can and puts it in the shelf's lower compartment (small shelf datasets,
+    /// table_pick).
+    #[arg(long)]
+    pub place: bool,
     /// Built-in robot name or robot file.
     #[arg(long, default_value = "fetch")]
     pub robot: String,

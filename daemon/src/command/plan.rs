@@ -15,6 +15,10 @@ pub fn run(args: PlanArgs) -> anyhow::Result<ExitCode> {
     let env = scene
         .environment()
         .map_err(|e| anyhow::anyhow!("{}: {e}", args.scene.display()))?;
+    // Objects the scene attaches (held in the gripper) become part of the robot.
+    let robot = scene
+        .robot(&robot)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", args.scene.display()))?;
     let time_limit = args
         .time_limit
         .or(request.allowed_planning_time)

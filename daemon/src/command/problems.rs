@@ -19,17 +19,16 @@ pub fn run(args: ProblemsArgs) -> anyhow::Result<ExitCode> {
     for name in &names {
         let spec = problems::dataset(name)
             .ok_or_else(|| problems::ProblemError::UnknownDataset(name.clone()))?;
-        for (set, count, seed) in [
-            (name.clone(), args.train, args.seed),
-            (
-                problems::test_set_name(name),
-                args.test,
-                args.seed + problems::TEST_SEED_OFFSET,
-            ),
-        ] {
+        let task = if args.place {
+            problems::Task::Place
+        } else {
+            problems::Task::Pick
+        };
+        for (test, count) in [(false, args.train), (true, args.test)] {
             if count == 0 {
                 continue;
             }
+            let (set, seed) = (task.set_name(name, test), task.set_seed(args.seed, test));
             let dir = args.out.join(&set);
             let bar = ProgressBar::new(count as u64).with_style(
                 ProgressStyle::with_template(
@@ -41,6 +40,7 @@ pub fn run(args: ProblemsArgs) -> anyhow::Result<ExitCode> {
             let options = GenerateOptions {
                 count,
                 seed,
+                task,
                 ..Default::default()
             };
             let report = problems::generate(&robot, &spec, &options, &dir, &mut |done, _| {

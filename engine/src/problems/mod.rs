@@ -10,11 +10,12 @@ use crate::collision::SphereChecker;
 use crate::planning::{self, ik, Goal, PlannerParams, PlannerRng, PoseGoal, UniformSampler};
 use crate::robot::Robot;
 use crate::scene::moveit::{self, MotionRequest};
-use crate::scene::{read_text, write_text, Scene, SceneError};
+use crate::scene::{read_text, write_text, AttachedObject, Scene, SceneError};
 use crate::world::Object;
 use crate::Pose;
 use nalgebra::{Translation3, UnitQuaternion, Vector3};
 use rand::{Rng, SeedableRng};
+use std::borrow::Cow;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 use thiserror::Error;
@@ -189,6 +190,7 @@ fn sample_scene_and_world(spec: &DatasetSpec, rng: &mut PlannerRng) -> (Scene, P
     let scene = Scene {
         name: spec.name.to_string(),
         objects,
+        attached: Vec::new(),
     };
     (scene, world)
 }
@@ -236,18 +238,52 @@ fn tip_ik(
         .next()
 }
 
-/// The robot holding `spec`'s first target object as a pick grasps it (the tip at the
-/// dataset's goal offset from the object): the robot of its place task.
-pub fn holding_robot(robot: &Robot, spec: &DatasetSpec) -> Option<Robot> {
-    let target = spec.targets.first()?;
-    let (_, shape, _) = spec.objects.iter().find(|(n, ..)| n == target)?;
-    Some(robot.with_attached(
-        robot.tip(),
-        &format!("held_{target}"),
-        *shape,
-        spec.goal_offset.inverse(),
-    ))
+/// What the robot holds in a place problem: `spec`'s first target object where a pick grasps
+/// it (the tip at the dataset's goal offset from the object), attached to the tip link.
+pub fn held_object(robot: &Robot, spec: &DatasetSpec) -> Result<AttachedObject, ProblemError> {
+    let no_place = || ProblemError::NoPlaceTask(spec.name.to_string());
+    spec.place.ok_or_else(no_place)?;
+    let target = spec.targets.first().ok_or_else(no_place)?;
+    let (_, shape, _) = spec
+        .objects
+        .iter()
+        .find(|(n, ..)| n == target)
+        .ok_or_else(no_place)?;
+    Ok(AttachedObject {
+        link: robot.links()[robot.tip()].name.clone(),
+        object: Object {
+            name: format!("held_{target}"),
+            shape: *shape,
+            pose: spec.goal_offset.inverse(),
+        },
+    })
 }
+
+/// A place candidate: a sampled scene without the held object, and collision-free ends for
+/// `holding` (the robot with [`held_object`] attached): the grasp where the object stood, and
+/// the dataset's place pose. Both ends hold the object a little above its support: resting on it
+/// would count as a collision of the robot's (padded) geometry.
+fn place_candidate(
+    holding: &Robot,
+    spec: &DatasetSpec,
+    rng: &mut PlannerRng,
+) -> Candidate {
+    let (place, place_variation) = spec.place.expect("checked by held_object");
+    let (mut scene, world) = sample_scene_and_world(spec, rng);
+    let target = &spec.targets[0];
+    let held = scene.objects.iter().position(|o| &o.name == target);
+    let held = scene.objects.remove(held.expect("checked by held_object"));
+    let goal_pose = world * place * variation_transform(rng, &place_variation);
+    let env = scene.environment().expect("generated scenes are valid");
+    let lift = Pose::translation(0.0, 0.0, HOLD_LIFT);
+    let ends = tip_ik(holding, &env, lift * held.pose * spec.goal_offset, rng).and_then(|s| {
+        tip_ik(holding, &env, lift * goal_pose * spec.goal_offset, rng).map(|g| (s, g))
+    });
+    (scene, ends)
+}
+
+/// A sampled scene and, when IK found collision-free ends, (start, goal).
+type Candidate = (Scene, Option<(Vec<f64>, Vec<f64>)>);
 
 /// The candidate loop shared by the generators: `candidate` samples a scene and, when IK
 /// finds collision-free ends, (start, goal); candidates the uniform planner solves in time go
@@ -256,7 +292,7 @@ fn solvable_candidates(
     robot: &Robot,
     options: &GenerateOptions,
     progress: &mut dyn FnMut(usize, usize),
-    mut candidate: impl FnMut(&mut PlannerRng) -> (Scene, Option<(Vec<f64>, Vec<f64>)>),
+    mut candidate: impl FnMut(&mut PlannerRng) -> Candidate,
     mut keep: impl FnMut(usize, Scene, Vec<f64>, Vec<f64>, Vec<Vec<f64>>) -> Result<(), SceneError>,
 ) -> Result<GenerateReport, ProblemError> {
     let mut rng = PlannerRng::seed_from_u64(options.seed);
@@ -301,66 +337,36 @@ fn solvable_candidates(
 /// Height above its support at which a place problem holds the object, metres.
 pub const HOLD_LIFT: f64 = 0.03;
 
-/// Samples `options.count` place problems of `spec` in memory (numbered from 1): the robot
-/// (`holding`, from [`holding_robot`]) starts grasping the first target object where it stands
-/// in a sampled scene and must put it at the dataset's place pose; the held object is taken out
-/// of the scene. Like [`generate`], a candidate is kept only when both ends have collision-free
-/// IK solutions and the uniform planner solves it in time (its path is kept).
-pub fn place_problems(
-    holding: &Robot,
-    spec: &DatasetSpec,
-    options: &GenerateOptions,
-    progress: &mut dyn FnMut(usize, usize),
-) -> Result<(Vec<Problem>, GenerateReport), ProblemError> {
-    let (Some((place, place_variation)), Some(target)) = (spec.place, spec.targets.first()) else {
-        return Err(ProblemError::NoPlaceTask(spec.name.to_string()));
-    };
-    if !spec.objects.iter().any(|(n, ..)| n == target) {
-        return Err(ProblemError::NoPlaceTask(spec.name.to_string()));
-    }
-    let candidate = |rng: &mut PlannerRng| {
-        let (mut scene, world) = sample_scene_and_world(spec, rng);
-        let held = scene.objects.iter().position(|o| &o.name == target);
-        let held = scene
-            .objects
-            .remove(held.expect("datasets hold their targets"));
-        let goal_pose = world * place * variation_transform(rng, &place_variation);
-        let env = scene.environment().expect("generated scenes are valid");
-        // Both ends hold the object a little above its support: resting on it would count as
-        // a collision of the robot's (padded) geometry.
-        let lift = Pose::translation(0.0, 0.0, HOLD_LIFT);
-        let ends = tip_ik(holding, &env, lift * held.pose * spec.goal_offset, rng).and_then(|s| {
-            tip_ik(holding, &env, lift * goal_pose * spec.goal_offset, rng).map(|g| (s, g))
-        });
-        (scene, ends)
-    };
-    let mut out = Vec::new();
-    let keep = |i: usize, scene: Scene, start: Vec<f64>, goal: Vec<f64>, path: Vec<Vec<f64>>| {
-        out.push(Problem {
-            index: i,
-            scene,
-            request: MotionRequest {
-                group_name: holding.group_name().to_string(),
-                start,
-                goal: Goal::Joints(vec![goal]),
-                allowed_planning_time: None,
-            },
-            path: Some(path),
-        });
-        Ok(())
-    };
-    let report = solvable_candidates(holding, options, progress, candidate, keep)?;
-    Ok((out, report))
+/// The two tasks a dataset's problems can pose.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum Task {
+    /// From the start state to a grasp of a target object.
+    #[default]
+    Pick,
+    /// Holding the first target object from its grasp to the dataset's place pose.
+    Place,
 }
+
+impl Task {
+    /// Folder name of a dataset's set for this task: `<dataset>[_place][_test]`.
+    pub fn set_name(self, dataset: &str, test: bool) -> String {
+        let task = if self == Task::Place { "_place" } else { "" };
+        let test = if test { "_test" } else { "" };
+        format!("{dataset}{task}{test}")
+    }
+
+    /// Seed of that set from the base seed (pick training sets use the base seed itself).
+    pub fn set_seed(self, seed: u64, test: bool) -> u64 {
+        seed + (self == Task::Place) as u64 * PLACE_SEED_OFFSET + test as u64 * TEST_SEED_OFFSET
+    }
+}
+
+/// Place sets are generated with the pick seed plus this offset (their scenes differ).
+pub const PLACE_SEED_OFFSET: u64 = 1;
 
 /// A dataset's test set lives beside its training set as `<name>_test`, generated with the
 /// training seed plus this offset (so the two never share a scene).
 pub const TEST_SEED_OFFSET: u64 = 1000;
-
-/// Folder name of a dataset's test set.
-pub fn test_set_name(dataset: &str) -> String {
-    format!("{dataset}_test")
-}
 
 /// Settings of [`generate`].
 #[derive(Debug, Clone)]
@@ -373,6 +379,8 @@ pub struct GenerateOptions {
     pub solve_time: Duration,
     /// Give up after `count * max_attempts_factor` candidates.
     pub max_attempts_factor: usize,
+    /// Pick or place problems.
+    pub task: Task,
 }
 
 impl Default for GenerateOptions {
@@ -382,6 +390,7 @@ impl Default for GenerateOptions {
             seed: 1,
             solve_time: Duration::from_secs(5),
             max_attempts_factor: 20,
+            task: Task::Pick,
         }
     }
 }
@@ -417,11 +426,31 @@ pub fn generate(
         message: e.to_string(),
     })?;
     let width = 4.max(options.count.to_string().len());
-    let candidate = |rng: &mut PlannerRng| {
-        let scene = sample_scene(spec, rng);
-        let env = scene.environment().expect("generated scenes are valid");
-        let goal = sample_goal(robot, spec, &scene, &env, rng);
-        (scene, goal.map(|g| (start.clone(), g)))
+    let held = match options.task {
+        Task::Pick => None,
+        Task::Place => Some(held_object(robot, spec)?),
+    };
+    let holding = match &held {
+        Some(a) => Cow::Owned(robot.with_attached(
+            robot.tip(),
+            &a.object.name,
+            a.object.shape,
+            a.object.pose,
+        )),
+        None => Cow::Borrowed(robot),
+    };
+    let candidate = |rng: &mut PlannerRng| match &held {
+        None => {
+            let scene = sample_scene(spec, rng);
+            let env = scene.environment().expect("generated scenes are valid");
+            let goal = sample_goal(robot, spec, &scene, &env, rng);
+            (scene, goal.map(|g| (start.clone(), g)))
+        }
+        Some(a) => {
+            let (mut scene, ends) = place_candidate(&holding, spec, rng);
+            scene.attached.push(a.clone());
+            (scene, ends)
+        }
     };
     let keep = |i: usize, scene: Scene, start: Vec<f64>, goal: Vec<f64>, path: Vec<Vec<f64>>| {
         let file = |kind: &str| -> PathBuf { out.join(format!("{kind}{i:0width$}.yaml")) };
@@ -435,12 +464,13 @@ pub fn generate(
         )?;
         write_text(&file("path"), &moveit::path_to_yaml(robot, &path))
     };
-    let report = solvable_candidates(robot, options, progress, candidate, keep)?;
+    let report = solvable_candidates(&holding, options, progress, candidate, keep)?;
     let config = format!(
-        "# Written by Ember's problem generator.\nrobot: {}\nplanning_group: {}\ndataset: {}\nsamples: {}\nseed: {}\n",
+        "# Written by Ember's problem generator.\nrobot: {}\nplanning_group: {}\ndataset: {}\ntask: {}\nsamples: {}\nseed: {}\n",
         robot.name(),
         robot.group_name(),
         spec.name,
+        if options.task == Task::Place { "place" } else { "pick" },
         report.written,
         options.seed
     );

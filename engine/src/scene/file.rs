@@ -10,6 +10,12 @@
 //!   - name: board
 //!     shape: {type: box, size: [0.4, 1.0, 0.04]}
 //!     position: [1.0, 0, 0.6]
+//! attached:                                                # optional: objects the robot holds
+//!   - link: wrist_roll_link
+//!     object:                                              # posed in the link's frame
+//!       name: held_Can2
+//!       shape: {type: cylinder, radius: 0.035, length: 0.12}
+//!       position: [0.2, 0, -0.05]
 //! ```
 
 use super::{pose_from_xyz_xyzw, pose_to_xyz_xyzw, read_text, write_text, Scene, SceneError};
@@ -25,6 +31,16 @@ struct SceneFile {
     name: String,
     #[serde(default)]
     objects: Vec<ObjectEntry>,
+    /// Objects the robot holds, posed in the named link's frame.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    attached: Vec<AttachedEntry>,
+}
+
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct AttachedEntry {
+    link: String,
+    object: ObjectEntry,
 }
 
 #[derive(Debug, Serialize, Deserialize)]
@@ -35,6 +51,45 @@ struct ObjectEntry {
     position: [f64; 3],
     #[serde(default = "identity_xyzw")]
     orientation: [f64; 4],
+}
+
+impl ObjectEntry {
+    fn of(o: &Object) -> Self {
+        let (position, orientation) = pose_to_xyz_xyzw(&o.pose);
+        ObjectEntry {
+            name: o.name.clone(),
+            shape: (&o.shape).into(),
+            position,
+            orientation,
+        }
+    }
+
+    /// The object, or an error naming `field` (e.g. `objects[2]`) in `origin`.
+    fn into_object(self, origin: &str, field: &str) -> Result<Object, SceneError> {
+        let err = |f: &str, message: String| SceneError::Field {
+            path: origin.to_string(),
+            field: format!("{field}.{f}"),
+            message,
+        };
+        let pose = pose_from_xyz_xyzw(self.position, self.orientation).ok_or_else(|| {
+            err(
+                "orientation",
+                "pose is not finite or the quaternion is zero".into(),
+            )
+        })?;
+        let shape: Shape = self.shape.into();
+        if !shape.is_valid() {
+            return Err(err(
+                "shape",
+                format!("dimensions must be positive and finite, got {shape:?}"),
+            ));
+        }
+        Ok(Object {
+            name: self.name,
+            shape,
+            pose,
+        })
+    }
 }
 
 fn identity_xyzw() -> [f64; 4] {
@@ -101,35 +156,24 @@ impl Scene {
         })?;
         let mut scene = Scene {
             name: file.name,
-            objects: Vec::new(),
+            ..Default::default()
         };
         for (i, o) in file.objects.into_iter().enumerate() {
-            let field = |f: &str| format!("objects[{i}].{f}");
-            let pose =
-                pose_from_xyz_xyzw(o.position, o.orientation).ok_or_else(|| SceneError::Field {
-                    path: origin.to_string(),
-                    field: field("orientation"),
-                    message: "pose is not finite or the quaternion is zero".into(),
-                })?;
-            let shape: Shape = o.shape.into();
-            if !shape.is_valid() {
+            let object = o.into_object(origin, &format!("objects[{i}]"))?;
+            if scene.objects.iter().any(|x| x.name == object.name) {
                 return Err(SceneError::Field {
                     path: origin.to_string(),
-                    field: field("shape"),
-                    message: format!("dimensions must be positive and finite, got {shape:?}"),
+                    field: format!("objects[{i}].name"),
+                    message: format!("duplicate object name '{}'", object.name),
                 });
             }
-            if scene.objects.iter().any(|x| x.name == o.name) {
-                return Err(SceneError::Field {
-                    path: origin.to_string(),
-                    field: field("name"),
-                    message: format!("duplicate object name '{}'", o.name),
-                });
-            }
-            scene.objects.push(Object {
-                name: o.name,
-                shape,
-                pose,
+            scene.objects.push(object);
+        }
+        for (i, a) in file.attached.into_iter().enumerate() {
+            let object = a.object.into_object(origin, &format!("attached[{i}]"))?;
+            scene.attached.push(super::AttachedObject {
+                link: a.link,
+                object,
             });
         }
         Ok(scene)
@@ -138,17 +182,13 @@ impl Scene {
     fn to_file(&self) -> SceneFile {
         SceneFile {
             name: self.name.clone(),
-            objects: self
-                .objects
+            objects: self.objects.iter().map(ObjectEntry::of).collect(),
+            attached: self
+                .attached
                 .iter()
-                .map(|o| {
-                    let (position, orientation) = pose_to_xyz_xyzw(&o.pose);
-                    ObjectEntry {
-                        name: o.name.clone(),
-                        shape: (&o.shape).into(),
-                        position,
-                        orientation,
-                    }
+                .map(|a| AttachedEntry {
+                    link: a.link.clone(),
+                    object: ObjectEntry::of(&a.object),
                 })
                 .collect(),
         }

@@ -7,24 +7,53 @@
 pub mod file;
 pub mod moveit;
 
+use crate::robot::Robot;
 use crate::world::{Environment, Object, WorldError};
 use crate::Pose;
 use nalgebra::{Quaternion, Translation3, UnitQuaternion};
+use std::borrow::Cow;
 use thiserror::Error;
 
-/// A set of named objects in the robot base frame.
+/// A set of named objects in the robot base frame, and objects the robot holds.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Scene {
     /// Scene name.
     pub name: String,
     /// Objects, poses in the robot base frame.
     pub objects: Vec<Object>,
+    /// Objects attached to robot links (held in the gripper), poses in the link's frame.
+    pub attached: Vec<AttachedObject>,
+}
+
+/// An object rigidly attached to a robot link (MoveIt's `AttachedCollisionObject`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct AttachedObject {
+    /// The link holding it.
+    pub link: String,
+    /// The object, posed in the link's frame.
+    pub object: Object,
 }
 
 impl Scene {
     /// The environment the checker uses for this scene.
     pub fn environment(&self) -> Result<Environment, WorldError> {
         Environment::from_objects(self.objects.iter().cloned())
+    }
+
+    /// The robot as this scene has it: `robot` itself, or a copy carrying the attached objects
+    /// ([`Robot::with_attached`]). An attachment to a link the robot lacks is an error naming it.
+    pub fn robot<'r>(&self, robot: &'r Robot) -> Result<Cow<'r, Robot>, SceneError> {
+        let mut out = Cow::Borrowed(robot);
+        for (i, a) in self.attached.iter().enumerate() {
+            let link = robot.link_index(&a.link).ok_or_else(|| SceneError::Field {
+                path: self.name.clone(),
+                field: format!("attached[{i}].link"),
+                message: format!("robot {} has no link '{}'", robot.name(), a.link),
+            })?;
+            let o = &a.object;
+            out = Cow::Owned(out.with_attached(link, &o.name, o.shape, o.pose));
+        }
+        Ok(out)
     }
 }
 

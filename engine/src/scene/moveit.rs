@@ -8,7 +8,7 @@
 //!   `primitive_poses`. Meshes and cones are rejected with the object's id.
 //! - Joint states name all robot joints; the planning group's are picked by name.
 
-use super::{pose_from_xyz_xyzw, pose_to_xyz_xyzw, Scene, SceneError};
+use super::{pose_from_xyz_xyzw, pose_to_xyz_xyzw, AttachedObject, Scene, SceneError};
 use crate::collision::Shape;
 use crate::planning::{Goal, PoseGoal};
 use crate::robot::Robot;
@@ -158,49 +158,67 @@ pub fn scene_from_yaml(text: &str, origin: &str) -> Result<Scene, SceneError> {
             Some(n) => n.str()?.to_string(),
             None => String::new(),
         },
-        objects: Vec::new(),
+        ..Default::default()
     };
-    let Some(world) = root.opt("world") else {
-        return Ok(scene);
-    };
-    for obj in world.seq_or_empty("collision_objects")? {
-        let id = obj.get("id")?.str()?.to_string();
-        if !obj.seq_or_empty("meshes")?.is_empty() {
-            return Err(obj.err(format!(
-                "object '{id}' has meshes; only box, sphere and cylinder primitives are supported"
-            )));
-        }
-        let base = match obj.opt("pose") {
-            Some(p) => p.pose()?,
-            None => Pose::identity(),
-        };
-        let prims = obj.seq_or_empty("primitives")?;
-        let poses = obj.seq_or_empty("primitive_poses")?;
-        if prims.len() != poses.len() {
-            return Err(obj.err(format!(
-                "object '{id}' has {} primitives but {} primitive_poses",
-                prims.len(),
-                poses.len()
-            )));
-        }
-        for (k, (prim, pose)) in prims.iter().zip(&poses).enumerate() {
-            let shape = primitive(prim)?;
-            let name = if k == 0 {
-                id.clone()
-            } else {
-                format!("{id}/{k}")
-            };
-            if scene.objects.iter().any(|o| o.name == name) {
-                return Err(obj.err(format!("duplicate object id '{name}'")));
+    if let Some(world) = root.opt("world") {
+        for obj in world.seq_or_empty("collision_objects")? {
+            for o in collision_object(&obj)? {
+                if scene.objects.iter().any(|x| x.name == o.name) {
+                    return Err(obj.err(format!("duplicate object id '{}'", o.name)));
+                }
+                scene.objects.push(o);
             }
-            scene.objects.push(Object {
-                name,
-                shape,
-                pose: base * pose.pose()?,
-            });
+        }
+    }
+    if let Some(state) = root.opt("robot_state") {
+        for att in state.seq_or_empty("attached_collision_objects")? {
+            let link = att.get("link_name")?.str()?.to_string();
+            for object in collision_object(&att.get("object")?)? {
+                scene.attached.push(AttachedObject {
+                    link: link.clone(),
+                    object,
+                });
+            }
         }
     }
     Ok(scene)
+}
+
+/// The primitives of one `CollisionObject` as objects (`id`, then `id/1`, `id/2`, ... for the
+/// further primitives of a compound object), posed in the object's header frame.
+fn collision_object(obj: &Node) -> Result<Vec<Object>, SceneError> {
+    let id = obj.get("id")?.str()?.to_string();
+    if !obj.seq_or_empty("meshes")?.is_empty() {
+        return Err(obj.err(format!(
+            "object '{id}' has meshes; only box, sphere and cylinder primitives are supported"
+        )));
+    }
+    let base = match obj.opt("pose") {
+        Some(p) => p.pose()?,
+        None => Pose::identity(),
+    };
+    let prims = obj.seq_or_empty("primitives")?;
+    let poses = obj.seq_or_empty("primitive_poses")?;
+    if prims.len() != poses.len() {
+        return Err(obj.err(format!(
+            "object '{id}' has {} primitives but {} primitive_poses",
+            prims.len(),
+            poses.len()
+        )));
+    }
+    let mut out = Vec::new();
+    for (k, (prim, pose)) in prims.iter().zip(&poses).enumerate() {
+        out.push(Object {
+            name: if k == 0 {
+                id.clone()
+            } else {
+                format!("{id}/{k}")
+            },
+            shape: primitive(prim)?,
+            pose: base * pose.pose()?,
+        });
+    }
+    Ok(out)
 }
 
 fn primitive(prim: &Node) -> Result<Shape, SceneError> {
@@ -487,8 +505,15 @@ pub fn scene_to_yaml(scene: &Scene, robot: &Robot, q: &[f64]) -> String {
         collision_objects: Vec<CollisionObject>,
     }
     #[derive(Serialize)]
+    struct AttachedOut {
+        link_name: String,
+        object: CollisionObject,
+    }
+    #[derive(Serialize)]
     struct RobotState {
         joint_state: JointStateOut,
+        #[serde(skip_serializing_if = "Vec::is_empty")]
+        attached_collision_objects: Vec<AttachedOut>,
     }
     #[derive(Serialize)]
     struct PlanningScene {
@@ -499,37 +524,47 @@ pub fn scene_to_yaml(scene: &Scene, robot: &Robot, q: &[f64]) -> String {
         is_diff: bool,
     }
     let base = robot.links()[0].name.clone();
+    let collision_object = |o: &Object, frame: &str| {
+        // Capsules have no MoveIt primitive: written as their bounding cylinder.
+        let (kind, dimensions) = match o.shape {
+            Shape::Box { half_extents: h } => ("box", vec![2.0 * h[0], 2.0 * h[1], 2.0 * h[2]]),
+            Shape::Sphere { radius } => ("sphere", vec![radius]),
+            Shape::Cylinder {
+                radius,
+                half_length,
+            } => ("cylinder", vec![2.0 * half_length, radius]),
+            Shape::Capsule {
+                radius,
+                half_length,
+            } => ("cylinder", vec![2.0 * (half_length + radius), radius]),
+        };
+        CollisionObject {
+            header: Header {
+                frame_id: frame.to_string(),
+            },
+            id: o.name.clone(),
+            primitives: vec![Primitive { kind, dimensions }],
+            primitive_poses: vec![(&o.pose).into()],
+        }
+    };
     let objects = scene
         .objects
         .iter()
-        .map(|o| {
-            // Capsules have no MoveIt primitive: written as their bounding cylinder.
-            let (kind, dimensions) = match o.shape {
-                Shape::Box { half_extents: h } => ("box", vec![2.0 * h[0], 2.0 * h[1], 2.0 * h[2]]),
-                Shape::Sphere { radius } => ("sphere", vec![radius]),
-                Shape::Cylinder {
-                    radius,
-                    half_length,
-                } => ("cylinder", vec![2.0 * half_length, radius]),
-                Shape::Capsule {
-                    radius,
-                    half_length,
-                } => ("cylinder", vec![2.0 * (half_length + radius), radius]),
-            };
-            CollisionObject {
-                header: Header {
-                    frame_id: base.clone(),
-                },
-                id: o.name.clone(),
-                primitives: vec![Primitive { kind, dimensions }],
-                primitive_poses: vec![(&o.pose).into()],
-            }
+        .map(|o| collision_object(o, &base))
+        .collect();
+    let attached = scene
+        .attached
+        .iter()
+        .map(|a| AttachedOut {
+            link_name: a.link.clone(),
+            object: collision_object(&a.object, &a.link),
         })
         .collect();
     let doc = PlanningScene {
         name: scene.name.clone(),
         robot_state: RobotState {
             joint_state: joint_state(robot, q),
+            attached_collision_objects: attached,
         },
         robot_model_name: robot.name().to_string(),
         world: World {

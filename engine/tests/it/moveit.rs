@@ -3,7 +3,9 @@
 use ember_engine::collision::Shape;
 use ember_engine::planning::Goal;
 use ember_engine::robot::Robot;
-use ember_engine::scene::{moveit, Scene, SceneError};
+use ember_engine::scene::{moveit, AttachedObject, Scene, SceneError};
+use ember_engine::world::Object;
+use ember_engine::Pose;
 
 fn read(name: &str) -> String {
     std::fs::read_to_string(crate::fixtures().join("moveit").join(name)).unwrap()
@@ -43,6 +45,50 @@ fn planning_scene_round_trips_through_export() {
         assert!((a.pose.translation.vector - b.pose.translation.vector).norm() < 1e-12);
         assert!(a.pose.rotation.angle_to(&b.pose.rotation) < 1e-9);
     }
+}
+
+#[test]
+fn attached_objects_round_trip_in_both_scene_formats_and_join_the_robot() {
+    let robot = Robot::builtin("fetch").unwrap();
+    let mut sut = Scene::load(crate::fixtures().join("moveit/scene.yaml")).unwrap();
+    sut.attached.push(AttachedObject {
+        link: "gripper_link".into(),
+        object: Object {
+            name: "held".into(),
+            shape: Shape::Cylinder {
+                radius: 0.035,
+                half_length: 0.06,
+            },
+            pose: Pose::translation(0.1, 0.0, 0.0),
+        },
+    });
+    let moveit_text = moveit::scene_to_yaml(&sut, &robot, robot.named_state("tuck").unwrap());
+    assert!(moveit_text.contains("attached_collision_objects"));
+    for again in [
+        moveit::scene_from_yaml(&moveit_text, "exported").unwrap(),
+        Scene::from_yaml(&sut.to_yaml(), "own").unwrap(),
+    ] {
+        assert_eq!(again.attached.len(), 1);
+        let (a, b) = (&sut.attached[0], &again.attached[0]);
+        assert_eq!((&a.link, &a.object.name), (&b.link, &b.object.name));
+        assert_eq!(a.object.shape, b.object.shape);
+        assert!(
+            (a.object.pose.translation.vector - b.object.pose.translation.vector).norm() < 1e-12
+        );
+        assert_eq!(
+            again.objects.len(),
+            sut.objects.len(),
+            "held objects are not obstacles"
+        );
+    }
+    let holding = sut.robot(&robot).unwrap();
+    assert_eq!(holding.links().len(), robot.links().len() + 1);
+    sut.attached[0].link = "no_such_link".into();
+    let err = sut.robot(&robot).unwrap_err().to_string();
+    assert!(
+        err.contains("attached[0].link") && err.contains("no_such_link"),
+        "{err}"
+    );
 }
 
 #[test]

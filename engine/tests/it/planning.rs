@@ -4,7 +4,7 @@ use ember_engine::collision::checker::DEFAULT_RESOLUTION;
 use ember_engine::planning::{
     self, path_is_valid, Goal, PlanError, PlanRequest, PlannerParams, PoseGoal, UniformSampler,
 };
-use ember_engine::problems::{self, GenerateOptions, ProblemSet};
+use ember_engine::problems::{self, GenerateOptions, ProblemSet, Task};
 use ember_engine::robot::{ConfigError, Robot};
 use ember_engine::scene::Scene;
 use ember_engine::world::Environment;
@@ -70,18 +70,24 @@ fn plans_in_generated_scenes_are_collision_free() {
 fn place_problems_start_holding_the_target_and_are_solved_for_the_holding_robot() {
     let robot = Robot::builtin("fetch").unwrap();
     let spec = problems::dataset("shelf_zero").unwrap();
-    let holding = problems::holding_robot(&robot, &spec).unwrap();
+    let dir = std::env::temp_dir().join(format!("ember-it-place-{}", std::process::id()));
     let options = GenerateOptions {
         count: 2,
         seed: 5,
+        task: Task::Place,
         ..Default::default()
     };
-    let (set, report) =
-        problems::place_problems(&holding, &spec, &options, &mut |_, _| {}).unwrap();
-    assert_eq!((set.len(), report.written), (2, 2));
-    for p in &set {
-        // The held can left the scene; the robot carries it instead.
+    let report = problems::generate(&robot, &spec, &options, &dir, &mut |_, _| {}).unwrap();
+    assert_eq!(report.written, 2);
+    // Written as MoveIt files and read back: the held can is an attached collision object.
+    let set = ProblemSet::load(&dir, &robot).unwrap();
+    assert_eq!(set.problems.len(), 2);
+    for p in &set.problems {
         assert!(p.scene.objects.iter().all(|o| o.name != "Can1"));
+        assert_eq!(p.scene.attached.len(), 1);
+        assert_eq!(p.scene.attached[0].link, robot.links()[robot.tip()].name);
+        let holding = p.scene.robot(&robot).unwrap();
+        assert_eq!(holding.links().len(), robot.links().len() + 1);
         let env = p.scene.environment().unwrap();
         let path = p.path.as_ref().unwrap();
         assert_eq!(path.first().unwrap(), &p.request.start);
@@ -97,14 +103,24 @@ fn place_problems_start_holding_the_target_and_are_solved_for_the_holding_robot(
         let drop = held_z(&p.request.start) - held_z(path.last().unwrap());
         assert!((drop - 0.34).abs() < 0.02, "dropped by {drop}");
     }
-    let err = problems::place_problems(
-        &holding,
+    std::fs::remove_dir_all(&dir).ok();
+    let err = problems::generate(
+        &robot,
         &problems::dataset("box").unwrap(),
         &options,
+        &dir,
         &mut |_, _| {},
     )
     .unwrap_err();
     assert!(err.to_string().contains("no place task"), "{err}");
+    assert_eq!(
+        Task::Place.set_name("shelf_zero", true),
+        "shelf_zero_place_test"
+    );
+    assert_ne!(
+        Task::Place.set_seed(1, false),
+        Task::Pick.set_seed(1, false)
+    );
 }
 
 #[test]
