@@ -3,8 +3,9 @@
 //! For each dataset (`shelf_zero`, `shelf_height`, `shelf_height_rot`) SPARK and FLAME learn
 //! incrementally from the training set's solved paths; at each training size N (10, 30, 50, 100,
 //! 300, 500) every method plans the same test problems, and SPARK retrieval is timed with the
-//! metric tree and the linear scan on the test scenes. Uniform sampling does not depend on N: it
-//! is planned once per dataset and reported at every N.
+//! metric tree and the linear scan on the test scenes. Uniform sampling does not depend on N, but
+//! it is planned again at every N, right beside the learned methods, so that every ratio compares
+//! runs made under the same machine load (machines here are shared).
 //!
 //! Problem sets are read from `--problems DIR` (`DIR/<dataset>` and `DIR/<dataset>_test`, and
 //! for the transfer case `DIR/<dataset>_place[_test]`, as `ember problems [--place]` writes them);
@@ -84,17 +85,38 @@ pub struct Args {
     lambda: Option<f64>,
 }
 
-/// The transfer case on one dataset: place problems (the robot holding the pick target),
-/// planned with uniform sampling, with experience learned on place problems, and with
-/// experience learned on pick problems (TX).
-struct TransferRun {
-    uniform: Outcome,
-    /// Per training size: (N, [SPARK, FLAME, SPARK (TX), FLAME (TX)]).
-    learned: Vec<(usize, [Outcome; 4])>,
+/// What the methods did at one training size N: (method name as in `RESULT` lines, outcome).
+/// Uniform sampling is planned at every N too, right beside the learned methods, so that each
+/// ratio compares runs made under the same machine load.
+struct Row {
+    n: usize,
+    outcomes: Vec<(&'static str, Outcome)>,
 }
 
-/// Names of the transfer columns, as in `RESULT paper_transfer` lines.
-const TRANSFER_METHODS: [&str; 4] = ["spark", "flame", "spark_tx", "flame_tx"];
+impl Row {
+    fn get(&self, method: &str) -> &Outcome {
+        &self
+            .outcomes
+            .iter()
+            .find(|(m, _)| *m == method)
+            .expect("measured")
+            .1
+    }
+}
+
+/// Column captions of the pick table and the transfer table (same order as the rows).
+const PICK_COLUMNS: [(&str, &str); 3] = [
+    ("uniform", "uniform"),
+    ("spark", "SPARK"),
+    ("flame", "FLAME"),
+];
+const TRANSFER_COLUMNS: [(&str, &str); 5] = [
+    ("uniform", "uniform"),
+    ("spark", "SPARK"),
+    ("flame", "FLAME"),
+    ("spark_tx", "SPARK (TX)"),
+    ("flame_tx", "FLAME (TX)"),
+];
 
 /// Retrieval timings at one training size.
 struct RetrievalRow {
@@ -109,12 +131,12 @@ struct RetrievalRow {
 /// Everything measured on one dataset.
 struct DatasetRun {
     name: String,
-    n_test: usize,
-    uniform: Outcome,
-    /// Per training size: (N, SPARK, FLAME).
-    learned: Vec<(usize, Outcome, Outcome)>,
+    /// Pick problems per N: uniform, SPARK, FLAME.
+    rows: Vec<Row>,
     retrieval: Vec<RetrievalRow>,
-    transfer: Option<TransferRun>,
+    /// The transfer case (place problems, the can held) per N: uniform, SPARK and FLAME learned
+    /// on place problems, SPARK and FLAME learned on pick problems (TX).
+    transfer: Vec<Row>,
 }
 
 /// A generator progress callback redrawing `label: done/count` when `done` changes.
@@ -249,28 +271,10 @@ fn run_dataset(
     };
     let mut spark = SparkDb::new(params.clone());
     let mut flame = FlameDb::new(params.clone(), MapParams::default().resolution);
-    let uniform = plan_set(&cases, Method::Uniform, &spark, &flame, options);
-    eprintln!(
-        "  uniform: {}/{} solved, mean {:.2} ms",
-        uniform.solved, uniform.n, uniform.mean_ms
-    );
-    let mut transfer = transfer_here.then(|| {
-        let uniform = plan_set(&place_cases, Method::Uniform, &spark, &flame, options);
-        eprintln!(
-            "  place, uniform: {}/{} solved, mean {:.2} ms",
-            uniform.solved, uniform.n, uniform.mean_ms
-        );
-        TransferRun {
-            uniform,
-            learned: Vec::new(),
-        }
-    });
     let mut place_spark = SparkDb::new(params.clone());
     let mut place_flame = FlameDb::new(params.clone(), MapParams::default().resolution);
-    let mut place_trained = 0;
-    let mut learned = Vec::new();
-    let mut retrieval = Vec::new();
-    let mut trained = 0;
+    let (mut trained, mut place_trained) = (0, 0);
+    let (mut rows, mut retrieval, mut transfer) = (Vec::new(), Vec::new(), Vec::new());
     for &n in sizes {
         let t = Instant::now();
         for p in &train.problems[trained..n.min(train.problems.len())] {
@@ -278,81 +282,100 @@ fn run_dataset(
         }
         trained = n.min(train.problems.len());
         let train_s = t.elapsed().as_secs_f64();
-        let s = plan_set(&cases, Method::Spark, &spark, &flame, options);
-        let f = plan_set(&cases, Method::Flame, &spark, &flame, options);
+        let eval = |m, s: &SparkDb, f: &FlameDb| plan_set(&cases, m, s, f, options);
+        let row = Row {
+            n,
+            outcomes: vec![
+                ("uniform", eval(Method::Uniform, &spark, &flame)),
+                ("spark", eval(Method::Spark, &spark, &flame)),
+                ("flame", eval(Method::Flame, &spark, &flame)),
+            ],
+        };
         eprintln!(
-            "  N={n:<4} (+{train_s:.1} s training; SPARK {} entries, FLAME {}): spark {:.2} ms, flame {:.2} ms",
+            "  N={n:<4} (+{train_s:.1} s training; SPARK {} entries, FLAME {}): uniform {:.2}, spark {:.2}, flame {:.2} ms",
             spark.len(),
             flame.len(),
-            s.mean_ms,
-            f.mean_ms
+            row.get("uniform").mean_ms,
+            row.get("spark").mean_ms,
+            row.get("flame").mean_ms
         );
+        rows.push(row);
         retrieval.push(time_retrieval(n, &cases, &spark, &flame, &params)?);
-        learned.push((n, s, f));
-        if let Some(run) = &mut transfer {
-            for p in &place_train[place_trained..n.min(place_train.len())] {
-                train_one(
-                    robot,
-                    p,
-                    args.interpolate,
-                    &mut place_spark,
-                    &mut place_flame,
-                )?;
-            }
-            place_trained = n.min(place_train.len());
-            let eval = |m, s: &SparkDb, f: &FlameDb| plan_set(&place_cases, m, s, f, options);
-            let row = [
-                eval(Method::Spark, &place_spark, &place_flame),
-                eval(Method::Flame, &place_spark, &place_flame),
-                eval(Method::Spark, &spark, &flame),
-                eval(Method::Flame, &spark, &flame),
-            ];
-            eprintln!(
-                "  place N={n:<4}: spark {:.2}, flame {:.2}, spark (TX) {:.2}, flame (TX) {:.2} ms",
-                row[0].mean_ms, row[1].mean_ms, row[2].mean_ms, row[3].mean_ms
-            );
-            run.learned.push((n, row));
+        if !transfer_here {
+            continue;
         }
+        for p in &place_train[place_trained..n.min(place_train.len())] {
+            train_one(
+                robot,
+                p,
+                args.interpolate,
+                &mut place_spark,
+                &mut place_flame,
+            )?;
+        }
+        place_trained = n.min(place_train.len());
+        let eval = |m, s: &SparkDb, f: &FlameDb| plan_set(&place_cases, m, s, f, options);
+        let row = Row {
+            n,
+            outcomes: vec![
+                ("uniform", eval(Method::Uniform, &spark, &flame)),
+                ("spark", eval(Method::Spark, &place_spark, &place_flame)),
+                ("flame", eval(Method::Flame, &place_spark, &place_flame)),
+                ("spark_tx", eval(Method::Spark, &spark, &flame)),
+                ("flame_tx", eval(Method::Flame, &spark, &flame)),
+            ],
+        };
+        eprintln!(
+            "  place N={n:<4}: uniform {:.2}, spark {:.2}, flame {:.2}, spark (TX) {:.2}, flame (TX) {:.2} ms",
+            row.get("uniform").mean_ms,
+            row.get("spark").mean_ms,
+            row.get("flame").mean_ms,
+            row.get("spark_tx").mean_ms,
+            row.get("flame_tx").mean_ms
+        );
+        transfer.push(row);
     }
     Ok(DatasetRun {
         name: dataset.to_string(),
-        n_test: cases.len(),
-        uniform,
-        learned,
+        rows,
         retrieval,
         transfer,
     })
 }
 
-fn print_tables(run: &DatasetRun) {
-    println!(
-        "\n{} ({} test problems; planning time includes retrieval; a failure counts as the limit)",
-        run.name, run.n_test
-    );
-    println!(
-        "{:>5} | {:>22} | {:>22} | {:>22} | {:>13}",
-        "N",
-        "uniform solved/mean/med",
-        "SPARK solved/mean/med",
-        "FLAME solved/mean/med",
-        "gain S / F"
-    );
-    let cell = |o: &Outcome| format!("{:>3} {:>8.2} {:>8.2}", o.solved, o.mean_ms, o.median_ms);
-    for (n, s, f) in &run.learned {
-        println!(
-            "{n:>5} | {:>22} | {:>22} | {:>22} | {:>5.2}x {:>5.2}x",
-            cell(&run.uniform),
-            cell(s),
-            cell(f),
-            run.uniform.mean_ms / s.mean_ms,
-            run.uniform.mean_ms / f.mean_ms
-        );
+/// Prints one table row per N: solved, mean and median per method, and each learned method's
+/// gain (uniform mean / its mean).
+fn print_rows(title: &str, rows: &[Row], columns: &[(&str, &str)]) {
+    let Some(first) = rows.first() else { return };
+    println!("\n{title} ({} test problems; planning time includes retrieval; a failure counts as the limit)", first.outcomes[0].1.n);
+    let mut head = format!("{:>5}", "N");
+    for (_, caption) in columns {
+        head += &format!(" | {:>21}", format!("{caption} solved/mean/med"));
     }
+    println!("{head} | gain");
+    for row in rows {
+        let mut line = format!("{:>5}", row.n);
+        for (m, _) in columns {
+            let o = row.get(m);
+            line += &format!(" | {:>5} {:>7.2} {:>7.2}", o.solved, o.mean_ms, o.median_ms);
+        }
+        let uniform = row.get("uniform").mean_ms;
+        let gains: Vec<String> = columns[1..]
+            .iter()
+            .map(|(m, _)| format!("{:.2}x", uniform / row.get(m).mean_ms))
+            .collect();
+        println!("{line} | {}", gains.join(" "));
+    }
+}
+
+fn print_tables(run: &DatasetRun) {
+    print_rows(&run.name, &run.rows, &PICK_COLUMNS);
     println!(
         "{:>5} | {:>9} {:>9} {:>9} | {:>9} {:>9} | {:>9} {:>9}",
         "N", "entries", "tree_us", "linear_us", "retr_S", "samplers", "FLAME", "flame_us"
     );
-    for (r, (_, s, _)) in run.retrieval.iter().zip(&run.learned) {
+    for (r, row) in run.retrieval.iter().zip(&run.rows) {
+        let s = row.get("spark");
         println!(
             "{:>5} | {:>9} {:>9.1} {:>9.1} | {:>9.0} {:>9.0} | {:>9} {:>9.1}",
             r.n_train,
@@ -367,26 +390,38 @@ fn print_tables(run: &DatasetRun) {
     }
 }
 
-fn print_transfer(name: &str, t: &TransferRun) {
-    println!(
-        "\n{name}, transfer: place problems with the target in the gripper ({} test problems); TX = learned on pick problems",
-        t.uniform.n
-    );
-    println!(
-        "{:>5} | {:>20} | {:>20} | {:>20} | {:>20} | {:>20}",
-        "N", "uniform", "SPARK", "FLAME", "SPARK (TX)", "FLAME (TX)"
-    );
-    let cell = |o: &Outcome| format!("{:>3} {:>7.2} {:>7.2}", o.solved, o.mean_ms, o.median_ms);
-    for (n, row) in &t.learned {
-        println!(
-            "{n:>5} | {:>20} | {:>20} | {:>20} | {:>20} | {:>20}",
-            cell(&t.uniform),
-            cell(&row[0]),
-            cell(&row[1]),
-            cell(&row[2]),
-            cell(&row[3])
-        );
+/// Appends `rows` to a CSV text and writes their mean-time chart to `<stem>.svg/png`.
+fn write_rows(
+    out: &Path,
+    stem: &str,
+    title: &str,
+    dataset: &str,
+    rows: &[Row],
+    columns: &[(&str, &str)],
+    csv: &mut String,
+) -> anyhow::Result<Vec<PathBuf>> {
+    let mut series = Vec::new();
+    for (m, caption) in columns {
+        series.push(Series {
+            name: caption.to_string(),
+            points: rows
+                .iter()
+                .map(|r| (r.n as f64, r.get(m).mean_ms))
+                .collect(),
+        });
+        for r in rows {
+            writeln!(csv, "{dataset},{m},{},{}", r.n, r.get(m).csv())?;
+        }
     }
+    let chart = Chart {
+        title,
+        x_label: "training problems N",
+        y_label: "mean time (ms)",
+        log_x: true,
+        log_y: false,
+        series,
+    };
+    plot::write(&out.join(stem), &chart)
 }
 
 fn write_outputs(out: &Path, runs: &[DatasetRun]) -> anyhow::Result<Vec<PathBuf>> {
@@ -398,84 +433,34 @@ fn write_outputs(out: &Path, runs: &[DatasetRun]) -> anyhow::Result<Vec<PathBuf>
     let mut files = Vec::new();
     let mut retrieval_series = Vec::new();
     for run in runs {
-        if let Some(t) = &run.transfer {
-            let mut series: Vec<Series> = ["uniform", "SPARK", "FLAME", "SPARK (TX)", "FLAME (TX)"]
-                .iter()
-                .map(|name| Series {
-                    name: name.to_string(),
-                    points: Vec::new(),
-                })
-                .collect();
-            for (n, row) in &t.learned {
-                let outcomes = std::iter::once(("uniform", &t.uniform))
-                    .chain(TRANSFER_METHODS.iter().copied().zip(row.iter()));
-                for (i, (m, o)) in outcomes.enumerate() {
-                    writeln!(tcsv, "{},{m},{n},{}", run.name, o.csv())?;
-                    series[i].points.push((*n as f64, o.mean_ms));
-                }
-            }
-            let chart = Chart {
-                title: &format!(
-                    "{}, place with the object held: mean planning time",
-                    run.name
-                ),
-                x_label: "training problems N",
-                y_label: "mean time (ms)",
-                log_x: true,
-                log_y: false,
-                series,
-            };
-            files.extend(plot::write(
-                &out.join(format!("transfer_{}", run.name)),
-                &chart,
+        let name = &run.name;
+        files.extend(write_rows(
+            out,
+            &format!("time_{name}"),
+            &format!("{name}: mean planning time (incl. retrieval)"),
+            name,
+            &run.rows,
+            &PICK_COLUMNS,
+            &mut csv,
+        )?);
+        if !run.transfer.is_empty() {
+            files.extend(write_rows(
+                out,
+                &format!("transfer_{name}"),
+                &format!("{name}, place with the object held: mean planning time"),
+                name,
+                &run.transfer,
+                &TRANSFER_COLUMNS,
+                &mut tcsv,
             )?);
-        }
-        for (n, s, f) in &run.learned {
-            for (m, o) in [("uniform", &run.uniform), ("spark", s), ("flame", f)] {
-                writeln!(csv, "{},{m},{n},{}", run.name, o.csv())?;
-            }
         }
         for r in &run.retrieval {
             writeln!(
                 rcsv,
-                "{},{},{},{:.1},{:.1},{},{:.1}",
-                run.name,
-                r.n_train,
-                r.spark_entries,
-                r.tree_us,
-                r.linear_us,
-                r.flame_entries,
-                r.flame_us
+                "{name},{},{},{:.1},{:.1},{},{:.1}",
+                r.n_train, r.spark_entries, r.tree_us, r.linear_us, r.flame_entries, r.flame_us
             )?;
         }
-        let line = |f: &dyn Fn(&(usize, Outcome, Outcome)) -> f64| {
-            run.learned.iter().map(|e| (e.0 as f64, f(e))).collect()
-        };
-        let chart = Chart {
-            title: &format!("{}: mean planning time (incl. retrieval)", run.name),
-            x_label: "training problems N",
-            y_label: "mean time (ms)",
-            log_x: true,
-            log_y: false,
-            series: vec![
-                Series {
-                    name: "uniform".into(),
-                    points: line(&|_| run.uniform.mean_ms),
-                },
-                Series {
-                    name: "SPARK".into(),
-                    points: line(&|e| e.1.mean_ms),
-                },
-                Series {
-                    name: "FLAME".into(),
-                    points: line(&|e| e.2.mean_ms),
-                },
-            ],
-        };
-        files.extend(plot::write(
-            &out.join(format!("time_{}", run.name)),
-            &chart,
-        )?);
         let pts = |f: &dyn Fn(&RetrievalRow) -> f64| {
             run.retrieval
                 .iter()
@@ -483,11 +468,11 @@ fn write_outputs(out: &Path, runs: &[DatasetRun]) -> anyhow::Result<Vec<PathBuf>
                 .collect()
         };
         retrieval_series.push(Series {
-            name: format!("{} tree", run.name),
+            name: format!("{name} tree"),
             points: pts(&|r| r.tree_us),
         });
         retrieval_series.push(Series {
-            name: format!("{} linear", run.name),
+            name: format!("{name} linear"),
             points: pts(&|r| r.linear_us),
         });
     }
@@ -509,6 +494,20 @@ fn write_outputs(out: &Path, runs: &[DatasetRun]) -> anyhow::Result<Vec<PathBuf>
         files.push(out.join(name));
     }
     Ok(files)
+}
+
+/// Prints the `RESULT <kind>` line of every (method, N) of `rows`.
+fn print_results(kind: &str, dataset: &str, rows: &[Row]) {
+    for r in rows {
+        for (m, o) in &r.outcomes {
+            println!(
+                "RESULT {kind} dataset={dataset} method={m} n_train={} n_test={} {}",
+                r.n,
+                o.n,
+                o.result_keys()
+            );
+        }
+    }
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -534,9 +533,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for dataset in &args.datasets {
         let run = run_dataset(&robot, &args, dataset, &sizes, n_test, &options)?;
         print_tables(&run);
-        if let Some(t) = &run.transfer {
-            print_transfer(&run.name, t);
-        }
+        print_rows(
+            &format!(
+                "{}, transfer: place problems with the can held; TX = learned on pick problems",
+                run.name
+            ),
+            &run.transfer,
+            &TRANSFER_COLUMNS,
+        );
         runs.push(run);
     }
     let files = write_outputs(&args.out, &runs)?;
@@ -545,31 +549,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("  {}", f.display());
     }
     for run in &runs {
-        for (n, s, f) in &run.learned {
-            for (m, o) in [("uniform", &run.uniform), ("spark", s), ("flame", f)] {
-                println!(
-                    "RESULT paper dataset={} method={m} n_train={n} n_test={} {}",
-                    run.name,
-                    o.n,
-                    o.result_keys()
-                );
-            }
-        }
+        print_results("paper", &run.name, &run.rows);
     }
     for run in &runs {
-        let Some(t) = &run.transfer else { continue };
-        for (n, row) in &t.learned {
-            let outcomes = std::iter::once(("uniform", &t.uniform))
-                .chain(TRANSFER_METHODS.iter().copied().zip(row.iter()));
-            for (m, o) in outcomes {
-                println!(
-                    "RESULT paper_transfer dataset={} method={m} n_train={n} n_test={} {}",
-                    run.name,
-                    o.n,
-                    o.result_keys()
-                );
-            }
-        }
+        print_results("paper_transfer", &run.name, &run.transfer);
     }
     for run in &runs {
         for r in &run.retrieval {

@@ -263,11 +263,7 @@ pub fn held_object(robot: &Robot, spec: &DatasetSpec) -> Result<AttachedObject, 
 /// `holding` (the robot with [`held_object`] attached): the grasp where the object stood, and
 /// the dataset's place pose. Both ends hold the object a little above its support: resting on it
 /// would count as a collision of the robot's (padded) geometry.
-fn place_candidate(
-    holding: &Robot,
-    spec: &DatasetSpec,
-    rng: &mut PlannerRng,
-) -> Candidate {
+fn place_candidate(holding: &Robot, spec: &DatasetSpec, rng: &mut PlannerRng) -> Candidate {
     let (place, place_variation) = spec.place.expect("checked by held_object");
     let (mut scene, world) = sample_scene_and_world(spec, rng);
     let target = &spec.targets[0];
