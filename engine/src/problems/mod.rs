@@ -11,7 +11,7 @@ use crate::planning::{self, ik, Goal, PlannerParams, PlannerRng, PoseGoal, Unifo
 use crate::robot::Robot;
 use crate::scene::moveit::{self, MotionRequest};
 use crate::scene::{read_text, write_text, AttachedObject, Scene, SceneError};
-use crate::world::Object;
+use crate::world::{Environment, Object};
 use crate::Pose;
 use nalgebra::{Translation3, UnitQuaternion, Vector3};
 use rand::{Rng, SeedableRng};
@@ -275,11 +275,11 @@ fn place_candidate(holding: &Robot, spec: &DatasetSpec, rng: &mut PlannerRng) ->
     let ends = tip_ik(holding, &env, lift * held.pose * spec.goal_offset, rng).and_then(|s| {
         tip_ik(holding, &env, lift * goal_pose * spec.goal_offset, rng).map(|g| (s, g))
     });
-    (scene, ends)
+    (scene, env, ends)
 }
 
-/// A sampled scene and, when IK found collision-free ends, (start, goal).
-type Candidate = (Scene, Option<(Vec<f64>, Vec<f64>)>);
+/// A sampled scene, its environment and, when IK found collision-free ends, (start, goal).
+type Candidate = (Scene, Environment, Option<(Vec<f64>, Vec<f64>)>);
 
 /// The candidate loop shared by the generators: `candidate` samples a scene and, when IK
 /// finds collision-free ends, (start, goal); candidates the uniform planner solves in time go
@@ -302,7 +302,7 @@ fn solvable_candidates(
         && report.attempts < options.count * options.max_attempts_factor
     {
         report.attempts += 1;
-        let (scene, ends) = candidate(&mut rng);
+        let (scene, env, ends) = candidate(&mut rng);
         let Some((start, goal)) = ends else {
             report.no_ik += 1;
             progress(report.written, report.attempts);
@@ -317,7 +317,6 @@ fn solvable_candidates(
                 ..Default::default()
             },
         };
-        let env = scene.environment().expect("generated scenes are valid");
         match planning::plan(robot, &env, &request, &mut UniformSampler) {
             Ok(result) => {
                 report.written += 1;
@@ -440,12 +439,12 @@ pub fn generate(
             let scene = sample_scene(spec, rng);
             let env = scene.environment().expect("generated scenes are valid");
             let goal = sample_goal(robot, spec, &scene, &env, rng);
-            (scene, goal.map(|g| (start.clone(), g)))
+            (scene, env, goal.map(|g| (start.clone(), g)))
         }
         Some(a) => {
-            let (mut scene, ends) = place_candidate(&holding, spec, rng);
+            let (mut scene, env, ends) = place_candidate(&holding, spec, rng);
             scene.attached.push(a.clone());
-            (scene, ends)
+            (scene, env, ends)
         }
     };
     let keep = |i: usize, scene: Scene, start: Vec<f64>, goal: Vec<f64>, path: Vec<Vec<f64>>| {

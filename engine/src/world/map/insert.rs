@@ -256,7 +256,7 @@ impl OccupancyMap {
         };
         // Recently seen endpoint voxels (discretize), direct-mapped: neighbouring pixels and rows
         // mostly fall in voxels already seen, and skipping them here is cheaper than later.
-        let mut recent = vec![[i32::MIN; 3]; RECENT];
+        let mut recent = vec![[i32::MIN; 3]; if discretize { RECENT } else { 0 }];
         let rot = sensor_pose.rotation.to_rotation_matrix().into_inner();
         for p in points {
             if !p.iter().all(|v| v.is_finite()) {
