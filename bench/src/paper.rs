@@ -28,7 +28,7 @@ use crate::stats::summary;
 use ember_engine::experience::primitive::{octoboxes, spark_pairs};
 use ember_engine::experience::{ExperienceParams, FlameDb, SparkDb};
 use ember_engine::planning::PlannerParams;
-use ember_engine::problems::{self, GenerateOptions, ProblemSet, Task};
+use ember_engine::problems::{self, GenerateOptions, Problem, ProblemSet, Task};
 use ember_engine::robot::Robot;
 use ember_engine::world::map::MapParams;
 use std::fmt::Write as _;
@@ -101,6 +101,50 @@ impl Row {
             .find(|(m, _)| *m == method)
             .expect("measured")
             .1
+    }
+
+    /// `method mean_ms, ...` for progress lines.
+    fn means(&self) -> String {
+        let parts: Vec<String> = self
+            .outcomes
+            .iter()
+            .map(|(m, o)| format!("{m} {:.2}", o.mean_ms))
+            .collect();
+        format!("{} ms", parts.join(", "))
+    }
+}
+
+/// SPARK and FLAME databases learned incrementally from the first problems of a set.
+struct Learner {
+    spark: SparkDb,
+    flame: FlameDb,
+    /// Problems of the set learned so far.
+    trained: usize,
+}
+
+impl Learner {
+    fn new(params: &ExperienceParams) -> Self {
+        Learner {
+            spark: SparkDb::new(params.clone()),
+            flame: FlameDb::new(params.clone(), MapParams::default().resolution),
+            trained: 0,
+        }
+    }
+
+    /// Learns the set's problems up to the first `n`.
+    fn train_to(
+        &mut self,
+        robot: &Robot,
+        problems: &[Problem],
+        n: usize,
+        interpolate: Option<f64>,
+    ) -> anyhow::Result<()> {
+        let n = n.min(problems.len());
+        for p in &problems[self.trained.min(n)..n] {
+            train_one(robot, p, interpolate, &mut self.spark, &mut self.flame)?;
+        }
+        self.trained = self.trained.max(n);
+        Ok(())
     }
 }
 
@@ -269,70 +313,46 @@ fn run_dataset(
         lambda: args.lambda.unwrap_or(defaults.lambda),
         ..defaults
     };
-    let mut spark = SparkDb::new(params.clone());
-    let mut flame = FlameDb::new(params.clone(), MapParams::default().resolution);
-    let mut place_spark = SparkDb::new(params.clone());
-    let mut place_flame = FlameDb::new(params.clone(), MapParams::default().resolution);
-    let (mut trained, mut place_trained) = (0, 0);
+    let (mut pick, mut place) = (Learner::new(&params), Learner::new(&params));
     let (mut rows, mut retrieval, mut transfer) = (Vec::new(), Vec::new(), Vec::new());
     for &n in sizes {
         let t = Instant::now();
-        for p in &train.problems[trained..n.min(train.problems.len())] {
-            train_one(robot, p, args.interpolate, &mut spark, &mut flame)?;
-        }
-        trained = n.min(train.problems.len());
+        pick.train_to(robot, &train.problems, n, args.interpolate)?;
         let train_s = t.elapsed().as_secs_f64();
+        let (spark, flame) = (&pick.spark, &pick.flame);
         let eval = |m, s: &SparkDb, f: &FlameDb| plan_set(&cases, m, s, f, options);
         let row = Row {
             n,
             outcomes: vec![
-                ("uniform", eval(Method::Uniform, &spark, &flame)),
-                ("spark", eval(Method::Spark, &spark, &flame)),
-                ("flame", eval(Method::Flame, &spark, &flame)),
+                ("uniform", eval(Method::Uniform, spark, flame)),
+                ("spark", eval(Method::Spark, spark, flame)),
+                ("flame", eval(Method::Flame, spark, flame)),
             ],
         };
         eprintln!(
-            "  N={n:<4} (+{train_s:.1} s training; SPARK {} entries, FLAME {}): uniform {:.2}, spark {:.2}, flame {:.2} ms",
+            "  N={n:<4} (+{train_s:.1} s training; SPARK {} entries, FLAME {}): {}",
             spark.len(),
             flame.len(),
-            row.get("uniform").mean_ms,
-            row.get("spark").mean_ms,
-            row.get("flame").mean_ms
+            row.means()
         );
         rows.push(row);
-        retrieval.push(time_retrieval(n, &cases, &spark, &flame, &params)?);
+        retrieval.push(time_retrieval(n, &cases, spark, flame, &params)?);
         if !transfer_here {
             continue;
         }
-        for p in &place_train[place_trained..n.min(place_train.len())] {
-            train_one(
-                robot,
-                p,
-                args.interpolate,
-                &mut place_spark,
-                &mut place_flame,
-            )?;
-        }
-        place_trained = n.min(place_train.len());
+        place.train_to(robot, &place_train, n, args.interpolate)?;
         let eval = |m, s: &SparkDb, f: &FlameDb| plan_set(&place_cases, m, s, f, options);
         let row = Row {
             n,
             outcomes: vec![
-                ("uniform", eval(Method::Uniform, &spark, &flame)),
-                ("spark", eval(Method::Spark, &place_spark, &place_flame)),
-                ("flame", eval(Method::Flame, &place_spark, &place_flame)),
-                ("spark_tx", eval(Method::Spark, &spark, &flame)),
-                ("flame_tx", eval(Method::Flame, &spark, &flame)),
+                ("uniform", eval(Method::Uniform, spark, flame)),
+                ("spark", eval(Method::Spark, &place.spark, &place.flame)),
+                ("flame", eval(Method::Flame, &place.spark, &place.flame)),
+                ("spark_tx", eval(Method::Spark, spark, flame)),
+                ("flame_tx", eval(Method::Flame, spark, flame)),
             ],
         };
-        eprintln!(
-            "  place N={n:<4}: uniform {:.2}, spark {:.2}, flame {:.2}, spark (TX) {:.2}, flame (TX) {:.2} ms",
-            row.get("uniform").mean_ms,
-            row.get("spark").mean_ms,
-            row.get("flame").mean_ms,
-            row.get("spark_tx").mean_ms,
-            row.get("flame_tx").mean_ms
-        );
+        eprintln!("  place N={n:<4}: {}", row.means());
         transfer.push(row);
     }
     Ok(DatasetRun {

@@ -195,9 +195,9 @@ impl SparkDb {
 
     /// The local samplers of every entry near any of the scene's primitives (each entry once).
     ///
-    /// The pair distances are assembled from box distances computed at most once per (query
-    /// box, stored box) and shared by every pair holding them: the same sums, bit for bit, as
-    /// [`SparkPair::distance`], at a fraction of the cost.
+    /// The pair distances are assembled from box distances computed once per (query box,
+    /// stored box), in one pass, and shared by every pair holding them: the same sums, bit for
+    /// bit, as [`SparkPair::distance`], at a fraction of the cost.
     pub fn retrieve(&self, primitives: &[SparkPair]) -> Retrieval {
         let mut query = Boxes::default();
         let ids: Vec<[u32; 2]> = primitives
