@@ -1,8 +1,10 @@
 //! Experience databases: primitive → local sampler (the critical configurations, each the mean
 //! of one Gaussian component).
 //!
-//! - [`SparkDb`]: radius retrieval (`d_radius`) in a vantage-point tree under the pair metric,
-//!   with a linear scan kept as the test oracle. Pairs equal up to 1 cm share one entry.
+//! - [`SparkDb`]: radius retrieval (`d_radius`) under the pair metric: a vantage-point tree
+//!   over the distinct boxes finds the boxes near each query box, and only the entries holding
+//!   them are tested; a linear scan is kept as the test oracle. Pairs equal up to 1 cm share one
+//!   entry.
 //! - [`FlameDb`]: exact match of octobox position and mask (a hash lookup).
 
 use super::primitive::{raw_distance, BoxPrimitive, OctoboxPrimitive, RawBox, SparkPair};
@@ -77,10 +79,13 @@ pub struct SparkDb {
     pub(crate) keys: Vec<SparkPair>,
     pub(crate) values: Vec<Vec<Vec<f64>>>,
     index: FxHashMap<Vec<i64>, usize>,
-    tree: VpTree,
     /// The distinct boxes of the entries (pairs of one scene share them), and each entry's two.
     boxes: Boxes,
     entry_boxes: Vec<[u32; 2]>,
+    /// Per distinct box, the entries holding it.
+    box_entries: Vec<Vec<u32>>,
+    /// The metric tree over the distinct boxes (box metric), with their ids.
+    box_tree: VpTree<(RawBox, u32)>,
 }
 
 /// Distinct boxes, numbered in order of arrival (bit-exact equality).
@@ -154,16 +159,29 @@ impl SparkDb {
             return;
         }
         let i = self.keys.len();
-        self.entry_boxes
-            .push([self.boxes.id(&key.a), self.boxes.id(&key.b)]);
+        let pair = [self.add_box(&key.a), self.add_box(&key.b)];
+        self.box_entries[pair[0] as usize].push(i as u32);
+        if pair[1] != pair[0] {
+            self.box_entries[pair[1] as usize].push(i as u32);
+        }
+        self.entry_boxes.push(pair);
         self.keys.push(key);
         let mut configs = configs;
         dedup_means(&mut configs);
         self.values.push(configs);
         self.index.insert(dk, i);
-        let (keys, params) = (&self.keys, &self.params);
-        self.tree
-            .insert(i, &|a, b| keys[a].distance(&keys[b], params));
+    }
+
+    /// The id of a box, indexing it in the box tree when it is new.
+    fn add_box(&mut self, b: &BoxPrimitive) -> u32 {
+        let id = self.boxes.id(b);
+        if id as usize == self.box_entries.len() {
+            self.box_entries.push(Vec::new());
+            let params = &self.params;
+            self.box_tree
+                .insert((b.raw(), id), |x, y| raw_distance(&x.0, &y.0, params));
+        }
+        id
     }
 
     /// Adds every entry of `other`.
@@ -175,15 +193,7 @@ impl SparkDb {
 
     /// Entry indices within `d_radius` of `query` (metric tree).
     pub fn within(&self, query: &SparkPair) -> Vec<usize> {
-        let mut out = Vec::new();
-        let r = self.params.d_radius;
-        self.tree.within(
-            r,
-            &|i| query.distance(&self.keys[i], &self.params),
-            &mut out,
-        );
-        out.sort_unstable();
-        out
+        self.search(std::slice::from_ref(query)).swap_remove(0)
     }
 
     /// Entry indices within `d_radius` of `query` by linear scan (the oracle).
@@ -194,90 +204,112 @@ impl SparkDb {
     }
 
     /// The local samplers of every entry near any of the scene's primitives (each entry once).
-    ///
-    /// The pair distances are assembled from box distances computed once per (query box,
-    /// stored box), in one pass, and shared by every pair holding them: the same sums, bit for
-    /// bit, as [`SparkPair::distance`], at a fraction of the cost.
     pub fn retrieve(&self, primitives: &[SparkPair]) -> Retrieval {
-        let mut query = Boxes::default();
-        let ids: Vec<[u32; 2]> = primitives
-            .iter()
-            .map(|p| [query.id(&p.a), query.id(&p.b)])
-            .collect();
-        // Every (query box, stored box) distance, computed in one branch-free pass: in the
-        // low-variation scenes SPARK works on, the search needs most of them anyway.
-        let nb = self.boxes.list.len();
-        let mut table = vec![0.0; query.list.len() * nb];
-        for (row, qb) in table.chunks_exact_mut(nb.max(1)).zip(&query.list) {
-            for (d, eb) in row.iter_mut().zip(&self.boxes.list) {
-                *d = raw_distance(qb, eb, &self.params);
-            }
-        }
-        let box_distance = |q: u32, e: u32| table[q as usize * nb + e as usize];
-        self.gather(primitives, |k, _| {
-            let [qa, qb] = ids[k];
-            let d = |i: usize| {
-                let [ea, eb] = self.entry_boxes[i];
-                let straight = box_distance(qa, ea) + box_distance(qb, eb);
-                let crossed = box_distance(qa, eb) + box_distance(qb, ea);
-                straight.min(crossed)
-            };
-            let mut out = Vec::new();
-            self.tree.within(self.params.d_radius, &d, &mut out);
-            // Entry order, as the linear scan: the sampler does not depend on tree layout.
-            out.sort_unstable();
-            out
-        })
+        self.gather(primitives, self.search(primitives))
     }
 
     /// The same retrieval by linear scan with [`SparkPair::distance`] (the oracle, and the
     /// benchmark's reference).
     pub fn retrieve_linear(&self, primitives: &[SparkPair]) -> Retrieval {
-        self.gather(primitives, |_, p| self.within_linear(p))
+        let hits = primitives.iter().map(|p| self.within_linear(p)).collect();
+        self.gather(primitives, hits)
     }
 
-    /// Collects the samplers of the entries `within(k, primitive)` finds for each primitive.
-    fn gather(
-        &self,
-        primitives: &[SparkPair],
-        within: impl Fn(usize, &SparkPair) -> Vec<usize>,
-    ) -> Retrieval {
+    /// For each query pair, the entries within `d_radius`, in entry order.
+    ///
+    /// A pair is within `r` only if, in one of the two pairings, each of its boxes lies within
+    /// `r` of its counterpart (box distances are not negative). So the metric tree over the
+    /// distinct boxes finds the boxes within `r` of each query box, and only the entries holding
+    /// such a box are tested, with the same sums, bit for bit, as [`SparkPair::distance`].
+    fn search(&self, primitives: &[SparkPair]) -> Vec<Vec<usize>> {
+        let (r, params) = (self.params.d_radius, &self.params);
+        let mut query = Boxes::default();
+        let ids: Vec<[u32; 2]> = primitives
+            .iter()
+            .map(|p| [query.id(&p.a), query.id(&p.b)])
+            .collect();
+        let (nq, nb) = (query.list.len(), self.boxes.list.len());
+        // Per query box: its near boxes, and the same as a bit set for quick rejection. Their
+        // distances: `slot[box]` indexes `dist`, `nq` values per near box (infinite where the box
+        // is not near that query box).
+        const FAR: u32 = u32::MAX;
+        let words = nb.div_ceil(64);
+        let mut bits = vec![0u64; nq * words];
+        let mut slot = vec![FAR; nb];
+        let mut dist: Vec<f64> = Vec::new();
+        let mut near: Vec<Vec<u32>> = vec![Vec::new(); nq];
+        for (qi, qb) in query.list.iter().enumerate() {
+            let d = |b: &(RawBox, u32)| raw_distance(qb, &b.0, params);
+            self.box_tree.within(r, d, |b, known| {
+                let id = b.1 as usize;
+                if slot[id] == FAR {
+                    slot[id] = (dist.len() / nq) as u32;
+                    dist.resize(dist.len() + nq, f64::INFINITY);
+                }
+                // Subtrees reported wholesale come without distances.
+                dist[slot[id] as usize * nq + qi] = known.unwrap_or_else(|| d(b));
+                bits[qi * words + id / 64] |= 1 << (id % 64);
+                near[qi].push(b.1);
+            });
+        }
+        let is_near =
+            |q: u32, b: u32| bits[q as usize * words + b as usize / 64] >> (b % 64) & 1 != 0;
+        let d = |q: u32, b: u32| dist[slot[b as usize] as usize * nq + q as usize];
+        // An entry within `r` holds a box near each of the query pair's boxes, so the entries
+        // of either query box's near boxes are enough: take the shorter list (a box every scene
+        // shares, like the floor, is in thousands of entries).
+        let candidates: Vec<usize> = near
+            .iter()
+            .map(|n| n.iter().map(|&b| self.box_entries[b as usize].len()).sum())
+            .collect();
+        ids.iter()
+            .map(|&[qa, qb]| {
+                let side = if candidates[qa as usize] <= candidates[qb as usize] {
+                    qa
+                } else {
+                    qb
+                };
+                let mut hits: Vec<usize> = near[side as usize]
+                    .iter()
+                    .flat_map(|&b| &self.box_entries[b as usize])
+                    .map(|&e| e as usize)
+                    .filter(|&e| {
+                        let [ea, eb] = self.entry_boxes[e];
+                        let straight = if is_near(qa, ea) && is_near(qb, eb) {
+                            d(qa, ea) + d(qb, eb)
+                        } else {
+                            f64::INFINITY
+                        };
+                        let crossed = if is_near(qa, eb) && is_near(qb, ea) {
+                            d(qa, eb) + d(qb, ea)
+                        } else {
+                            f64::INFINITY
+                        };
+                        straight.min(crossed) <= r
+                    })
+                    .collect();
+                // Entry order, as the linear scan: the sampler does not depend on tree layout.
+                hits.sort_unstable();
+                hits.dedup();
+                hits
+            })
+            .collect()
+    }
+
+    /// Collects the samplers of the entries found for each primitive.
+    fn gather(&self, primitives: &[SparkPair], hits: Vec<Vec<usize>>) -> Retrieval {
         let mut seen = vec![false; self.keys.len()];
         let mut r = Retrieval {
             query_primitives: primitives.len(),
             ..Default::default()
         };
-        for (k, p) in primitives.iter().enumerate() {
-            for i in within(k, p) {
-                r.entries += 1;
-                if !std::mem::replace(&mut seen[i], true) {
-                    r.push_sampler(&self.values[i]);
-                }
+        for i in hits.into_iter().flatten() {
+            r.entries += 1;
+            if !std::mem::replace(&mut seen[i], true) {
+                r.push_sampler(&self.values[i]);
             }
         }
         r
-    }
-
-    /// Rebuilds the metric tree over all entries (after loading).
-    pub(crate) fn reindex(&mut self) {
-        self.boxes = Boxes::default();
-        self.entry_boxes = self
-            .keys
-            .iter()
-            .map(|k| [self.boxes.id(&k.a), self.boxes.id(&k.b)])
-            .collect();
-        self.index = self
-            .keys
-            .iter()
-            .enumerate()
-            .map(|(i, k)| (k.dedup_key(), i))
-            .collect();
-        let (keys, params) = (&self.keys, &self.params);
-        let mut tree = VpTree::default();
-        tree.build((0..keys.len()).collect(), &|a, b| {
-            keys[a].distance(&keys[b], params)
-        });
-        self.tree = tree;
     }
 }
 

@@ -331,8 +331,7 @@ impl SparkDb {
             let b = r.boxp()?;
             let names = [r.str()?, r.str()?];
             let configs = r.configs(dof)?;
-            db.keys.push(SparkPair { a, b, names });
-            db.values.push(configs);
+            db.insert(SparkPair { a, b, names }, configs);
         }
         if r.pos != payload.len() {
             return Err(DbError::Corrupt {
@@ -340,7 +339,6 @@ impl SparkDb {
                 what: "trailing bytes".into(),
             });
         }
-        db.reindex();
         Ok(db)
     }
 }
