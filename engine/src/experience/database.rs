@@ -5,7 +5,8 @@
 //!   over the distinct boxes finds the boxes near each query box, and only the entries holding
 //!   them are tested; a linear scan is kept as the test oracle. Pairs equal up to 1 cm share one
 //!   entry.
-//! - [`FlameDb`]: exact match of octobox position and mask (a hash lookup).
+//! - [`FlameDb`]: octoboxes with the same occupancy mask whose centres lie within
+//!   `flame_radius` (a hash lookup by mask and coarse cell).
 
 use super::primitive::{raw_distance, BoxPrimitive, OctoboxPrimitive, RawBox, SparkPair};
 use super::vptree::VpTree;
@@ -318,7 +319,12 @@ impl SparkDb {
 pub struct FlameDb {
     pub(crate) params: ExperienceParams,
     pub(crate) resolution: f64,
-    pub(crate) entries: FxHashMap<(BlockKey, u64), Vec<Vec<f64>>>,
+    pub(crate) keys: Vec<OctoboxPrimitive>,
+    pub(crate) values: Vec<Vec<Vec<f64>>>,
+    index: FxHashMap<(BlockKey, u64), usize>,
+    /// Entries by mask and coarse cell (`2·reach + 1` octoboxes a side), so a query looks at
+    /// no more than 8 cells.
+    cells: FxHashMap<(u64, BlockKey), Vec<u32>>,
 }
 
 impl FlameDb {
@@ -327,7 +333,7 @@ impl FlameDb {
         FlameDb {
             params,
             resolution,
-            entries: FxHashMap::default(),
+            ..Default::default()
         }
     }
 
@@ -343,17 +349,38 @@ impl FlameDb {
 
     /// Number of entries.
     pub fn len(&self) -> usize {
-        self.entries.len()
+        self.keys.len()
     }
 
     /// True when empty.
     pub fn is_empty(&self) -> bool {
-        self.entries.is_empty()
+        self.keys.is_empty()
     }
 
     /// Total stored configurations.
     pub fn configurations(&self) -> usize {
-        self.entries.values().map(Vec::len).sum()
+        self.values.iter().map(Vec::len).sum()
+    }
+
+    /// Entries as (octobox, configurations).
+    pub fn entries(&self) -> impl Iterator<Item = (&OctoboxPrimitive, &Vec<Vec<f64>>)> {
+        self.keys.iter().zip(&self.values)
+    }
+
+    /// How many octoboxes away a match may lie along one axis.
+    fn reach(&self) -> i32 {
+        let side = 4.0 * self.resolution;
+        if side > 0.0 {
+            (self.params.flame_radius / side + 1e-9).floor().max(0.0) as i32
+        } else {
+            0
+        }
+    }
+
+    /// The coarse cell holding octobox `key`.
+    fn cell(&self, key: BlockKey) -> BlockKey {
+        let size = 2 * self.reach() + 1;
+        key.map(|v| v.div_euclid(size))
     }
 
     /// Adds critical configurations for an octobox.
@@ -361,28 +388,83 @@ impl FlameDb {
         if configs.is_empty() {
             return;
         }
-        let v = self.entries.entry((key.key, key.mask)).or_default();
-        v.extend(configs);
-        dedup_means(v);
+        if let Some(&i) = self.index.get(&(key.key, key.mask)) {
+            self.values[i].extend(configs);
+            dedup_means(&mut self.values[i]);
+            return;
+        }
+        let i = self.keys.len();
+        let cell = self.cell(key.key);
+        self.cells
+            .entry((key.mask, cell))
+            .or_default()
+            .push(i as u32);
+        self.index.insert((key.key, key.mask), i);
+        self.keys.push(key);
+        let mut configs = configs;
+        dedup_means(&mut configs);
+        self.values.push(configs);
     }
 
     /// Adds every entry of `other`.
     pub fn merge(&mut self, other: &FlameDb) {
-        for ((k, m), v) in &other.entries {
-            self.insert(OctoboxPrimitive { key: *k, mask: *m }, v.clone());
+        for (k, v) in other.entries() {
+            self.insert(*k, v.clone());
         }
     }
 
-    /// The local samplers of the octoboxes that match exactly.
+    /// True when octobox centres `a` and `b` are at most `flame_radius` apart.
+    fn close(&self, a: BlockKey, b: BlockKey) -> bool {
+        let side = 4.0 * self.resolution;
+        let d2: i64 = (0..3).map(|i| (a[i] as i64 - b[i] as i64).pow(2)).sum();
+        d2 as f64 * side * side <= self.params.flame_radius.powi(2) + 1e-12
+    }
+
+    /// Entry indices matching `query`: the same occupancy mask, centres at most
+    /// `flame_radius` apart (entry order).
+    pub fn matches(&self, query: &OctoboxPrimitive) -> Vec<usize> {
+        let reach = self.reach();
+        let size = 2 * reach + 1;
+        let lo = query.key.map(|v| (v - reach).div_euclid(size));
+        let hi = query.key.map(|v| (v + reach).div_euclid(size));
+        let mut out = Vec::new();
+        for x in lo[0]..=hi[0] {
+            for y in lo[1]..=hi[1] {
+                for z in lo[2]..=hi[2] {
+                    if let Some(list) = self.cells.get(&(query.mask, [x, y, z])) {
+                        let close = |&i: &usize| self.close(self.keys[i].key, query.key);
+                        out.extend(list.iter().map(|&i| i as usize).filter(close));
+                    }
+                }
+            }
+        }
+        out.sort_unstable();
+        out
+    }
+
+    /// Entry indices matching `query`, by linear scan (the oracle).
+    pub fn matches_linear(&self, query: &OctoboxPrimitive) -> Vec<usize> {
+        (0..self.keys.len())
+            .filter(|&i| {
+                let k = &self.keys[i];
+                k.mask == query.mask && self.close(k.key, query.key)
+            })
+            .collect()
+    }
+
+    /// The local samplers of the stored octoboxes that match the query's (each entry once).
     pub fn retrieve(&self, primitives: &[OctoboxPrimitive]) -> Retrieval {
+        let mut seen = vec![false; self.keys.len()];
         let mut r = Retrieval {
             query_primitives: primitives.len(),
             ..Default::default()
         };
         for p in primitives {
-            if let Some(v) = self.entries.get(&(p.key, p.mask)) {
+            for i in self.matches(p) {
                 r.entries += 1;
-                r.push_sampler(v);
+                if !std::mem::replace(&mut seen[i], true) {
+                    r.push_sampler(&self.values[i]);
+                }
             }
         }
         r

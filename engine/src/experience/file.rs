@@ -13,8 +13,9 @@ use std::path::Path;
 use thiserror::Error;
 
 const MAGIC: &[u8; 8] = b"EMBEREXP";
-/// Current file format version.
-pub const VERSION: u32 = 1;
+/// Current file format version (2 added `flame_radius` to the parameters; version 1 files
+/// load with its default).
+pub const VERSION: u32 = 2;
 const KIND_SPARK: u8 = 1;
 const KIND_FLAME: u8 = 2;
 
@@ -97,7 +98,15 @@ impl Writer {
         self.0.extend_from_slice(s.as_bytes());
     }
     fn params(&mut self, p: &ExperienceParams) {
-        for v in [p.sigma, p.lambda, p.d_radius, p.d_pairs, p.w_t, p.w_s] {
+        for v in [
+            p.sigma,
+            p.lambda,
+            p.d_radius,
+            p.d_pairs,
+            p.w_t,
+            p.w_s,
+            p.flame_radius,
+        ] {
             self.f64(v);
         }
     }
@@ -125,6 +134,7 @@ struct Reader<'a> {
     data: &'a [u8],
     pos: usize,
     path: &'a str,
+    version: u32,
 }
 
 impl Reader<'_> {
@@ -175,6 +185,11 @@ impl Reader<'_> {
             d_pairs: self.f64()?,
             w_t: self.f64()?,
             w_s: self.f64()?,
+            flame_radius: if self.version >= 2 {
+                self.f64()?
+            } else {
+                ExperienceParams::default().flame_radius
+            },
         })
     }
     fn count(&mut self, each: usize) -> Result<usize, DbError> {
@@ -248,7 +263,7 @@ fn save(path: &Path, kind: u8, payload: &[u8]) -> Result<(), DbError> {
 }
 
 /// Reads and checks a file; returns its kind and payload.
-fn load(path: &Path) -> Result<(u8, Vec<u8>), DbError> {
+fn load(path: &Path) -> Result<(u8, u32, Vec<u8>), DbError> {
     let p = path.display().to_string();
     let bytes = std::fs::read(path).map_err(|e| io(path, e))?;
     if bytes.len() < 8 || &bytes[..8] != MAGIC {
@@ -258,7 +273,7 @@ fn load(path: &Path) -> Result<(u8, Vec<u8>), DbError> {
         return Err(DbError::Truncated(p));
     }
     let version = u32::from_le_bytes(bytes[8..12].try_into().expect("4 bytes"));
-    if version != VERSION {
+    if !(1..=VERSION).contains(&version) {
         return Err(DbError::Version {
             path: p,
             found: version,
@@ -275,21 +290,42 @@ fn load(path: &Path) -> Result<(u8, Vec<u8>), DbError> {
     if crc32fast::hash(payload) != crc {
         return Err(DbError::Checksum(p));
     }
-    Ok((kind, payload.to_vec()))
+    Ok((kind, version, payload.to_vec()))
 }
 
-/// Reads and checks a file of kind `expected`; returns its payload and the path as text.
-fn load_kind(path: &Path, expected: u8) -> Result<(Vec<u8>, String), DbError> {
-    let (found, payload) = load(path)?;
-    let p = path.display().to_string();
-    if found != expected {
-        return Err(DbError::WrongKind {
+/// A checked file of kind `expected`: its payload, path as text and format version.
+struct Loaded {
+    payload: Vec<u8>,
+    path: String,
+    version: u32,
+}
+
+impl Loaded {
+    fn open(path: &Path, expected: u8) -> Result<Loaded, DbError> {
+        let (found, version, payload) = load(path)?;
+        let p = path.display().to_string();
+        if found != expected {
+            return Err(DbError::WrongKind {
+                path: p,
+                expected: kind_name(expected),
+                found: kind_name(found),
+            });
+        }
+        Ok(Loaded {
+            payload,
             path: p,
-            expected: kind_name(expected),
-            found: kind_name(found),
-        });
+            version,
+        })
     }
-    Ok((payload, p))
+
+    fn reader(&self) -> Reader<'_> {
+        Reader {
+            data: &self.payload,
+            pos: 0,
+            path: &self.path,
+            version: self.version,
+        }
+    }
 }
 
 fn dof_of<'a>(mut values: impl Iterator<Item = &'a Vec<Vec<f64>>>) -> usize {
@@ -316,12 +352,8 @@ impl SparkDb {
 
     /// Loads a database saved by [`SparkDb::save`].
     pub fn load(path: impl AsRef<Path>) -> Result<SparkDb, DbError> {
-        let (payload, p) = load_kind(path.as_ref(), KIND_SPARK)?;
-        let mut r = Reader {
-            data: &payload,
-            pos: 0,
-            path: &p,
-        };
+        let file = Loaded::open(path.as_ref(), KIND_SPARK)?;
+        let mut r = file.reader();
         let params = r.params()?;
         let dof = r.u32()? as usize;
         let n = r.u64()? as usize;
@@ -333,9 +365,9 @@ impl SparkDb {
             let configs = r.configs(dof)?;
             db.insert(SparkPair { a, b, names }, configs);
         }
-        if r.pos != payload.len() {
+        if r.pos != file.payload.len() {
             return Err(DbError::Corrupt {
-                path: p,
+                path: file.path.clone(),
                 what: "trailing bytes".into(),
             });
         }
@@ -349,29 +381,23 @@ impl FlameDb {
         let mut w = Writer::default();
         w.params(&self.params);
         w.f64(self.resolution);
-        let dof = dof_of(self.entries.values());
+        let dof = dof_of(self.values.iter());
         w.u32(dof as u32);
-        let mut keys: Vec<_> = self.entries.keys().copied().collect();
-        keys.sort();
-        w.u64(keys.len() as u64);
-        for k in keys {
-            for v in k.0 {
-                w.i32(v);
+        w.u64(self.keys.len() as u64);
+        for (k, v) in self.entries() {
+            for c in k.key {
+                w.i32(c);
             }
-            w.u64(k.1);
-            w.configs(dof, &self.entries[&k]);
+            w.u64(k.mask);
+            w.configs(dof, v);
         }
         save(path.as_ref(), KIND_FLAME, &w.0)
     }
 
     /// Loads a database saved by [`FlameDb::save`].
     pub fn load(path: impl AsRef<Path>) -> Result<FlameDb, DbError> {
-        let (payload, p) = load_kind(path.as_ref(), KIND_FLAME)?;
-        let mut r = Reader {
-            data: &payload,
-            pos: 0,
-            path: &p,
-        };
+        let file = Loaded::open(path.as_ref(), KIND_FLAME)?;
+        let mut r = file.reader();
         let params = r.params()?;
         let resolution = r.f64()?;
         let dof = r.u32()? as usize;
@@ -383,9 +409,9 @@ impl FlameDb {
             let configs = r.configs(dof)?;
             db.insert(OctoboxPrimitive { key, mask }, configs);
         }
-        if r.pos != payload.len() {
+        if r.pos != file.payload.len() {
             return Err(DbError::Corrupt {
-                path: p,
+                path: file.path.clone(),
                 what: "trailing bytes".into(),
             });
         }

@@ -4,7 +4,7 @@
 //! - [`primitive`]: local primitives (SPARK box pairs, FLAME octoboxes) and their distances;
 //! - [`criticality`]: which path configurations belong to a primitive;
 //! - [`database`]: primitive → local sampler, with radius retrieval (SPARK, exact metric tree)
-//!   and exact-match retrieval (FLAME); [`vptree`] is the metric tree; [`file`] the on-disk form;
+//!   and mask-match retrieval (FLAME); [`vptree`] is the metric tree; [`file`] the on-disk form;
 //! - [`sampler`]: the global sampler (λ-mix of uniform and the retrieved Gaussian mixtures) that
 //!   plugs into the planner;
 //! - [`train`]: learning from solved paths.
@@ -14,8 +14,12 @@
 //!   the paper's `1 − (q₁·q₂)²`, so the box distance is a true metric; the pair distance (minimum
 //!   over the two pairings of summed box distances) is then a metric too, because swapping the
 //!   boxes of a pair is an isometry of the summed metric — so the metric tree prunes exactly;
-//! - FLAME retrieval is an exact hash match of octobox position and 64-bit mask (the authors'
-//!   GNAT radius query with their distance amounts to the same match);
+//! - FLAME retrieval is a hash lookup of the octoboxes with the query's 64-bit mask and a centre
+//!   within `flame_radius` (the authors' GNAT radius query with their distance and hard-coded
+//!   radius amounts to the same match);
+//! - `d_radius` defaults to 0.2 under the paper's box distance: the authors' code sums the pose
+//!   and size terms without the `w_s` weights and queries 0.4, which is the same set of entries
+//!   when `w_s` = 0.5.
 //! - the global sampler picks a retrieved local sampler uniformly, then one of its components
 //!   (the paper's mixture of mixtures), where the authors' code flattens all unique means.
 
@@ -38,7 +42,7 @@ pub struct ExperienceParams {
     pub sigma: f64,
     /// Probability of a uniform sample.
     pub lambda: f64,
-    /// SPARK retrieval radius.
+    /// SPARK retrieval radius (pair metric).
     pub d_radius: f64,
     /// SPARK: objects closer than this form a pair; criticality threshold too (metres).
     pub d_pairs: f64,
@@ -46,6 +50,8 @@ pub struct ExperienceParams {
     pub w_t: f64,
     /// Weight of pose against size in the box distance.
     pub w_s: f64,
+    /// FLAME: largest distance between the centres of matching octoboxes (metres).
+    pub flame_radius: f64,
 }
 
 impl Default for ExperienceParams {
@@ -53,10 +59,11 @@ impl Default for ExperienceParams {
         ExperienceParams {
             sigma: 0.2,
             lambda: 0.5,
-            d_radius: 0.4,
+            d_radius: 0.2,
             d_pairs: 0.2,
             w_t: 0.75,
             w_s: 0.5,
+            flame_radius: 0.2,
         }
     }
 }

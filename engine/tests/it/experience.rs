@@ -121,6 +121,48 @@ fn scene_retrieval_matches_the_linear_scan_when_pairs_share_boxes() {
 }
 
 #[test]
+fn flame_matches_equal_masks_within_the_radius_as_the_linear_scan_does() {
+    let mut rng = PlannerRng::seed_from_u64(9);
+    // 0.02 m leaves: octoboxes 0.08 m apart; 0.2 m reaches 2.5 octoboxes along an axis.
+    let mut sut = FlameDb::new(ExperienceParams::default(), 0.02);
+    // Few masks, so equal masks meet at many positions, on both sides of zero.
+    let masks = [0xffff_u64, 0xff00_ff00, u64::MAX];
+    for _ in 0..3000 {
+        let key = [0, 1, 2].map(|_| rng.random_range(-12..12));
+        let mask = masks[rng.random_range(0..masks.len())];
+        sut.insert(OctoboxPrimitive { key, mask }, configs(&mut rng, 1));
+    }
+    let mut found = 0;
+    for _ in 0..300 {
+        let key = [0, 1, 2].map(|_| rng.random_range(-14..14));
+        let q = OctoboxPrimitive {
+            key,
+            mask: masks[rng.random_range(0..masks.len())],
+        };
+        let cells = sut.matches(&q);
+        assert_eq!(cells, sut.matches_linear(&q), "{q:?}");
+        found += cells.len();
+    }
+    assert!(found > 300 && found < 300 * sut.len() / 10, "{found}");
+
+    // The authors' match: same mask and centres within 0.2 m, not only the same octobox.
+    let mut one = FlameDb::new(ExperienceParams::default(), 0.02);
+    let stored = OctoboxPrimitive {
+        key: [5, 5, 5],
+        mask: 0xff,
+    };
+    one.insert(stored, configs(&mut rng, 1));
+    let at = |key: [i32; 3], mask: u64| one.retrieve(&[OctoboxPrimitive { key, mask }]).entries;
+    assert_eq!(at([5, 5, 5], 0xff), 1);
+    assert_eq!(at([7, 5, 5], 0xff), 1, "0.16 m away");
+    assert_eq!(at([7, 6, 5], 0xff), 1, "0.179 m away");
+    assert_eq!(at([7, 6, 6], 0xff), 1, "0.196 m away");
+    assert_eq!(at([8, 5, 5], 0xff), 0, "0.24 m away");
+    assert_eq!(at([7, 7, 5], 0xff), 0, "0.226 m away");
+    assert_eq!(at([5, 5, 5], 0xfe), 0, "another mask");
+}
+
+#[test]
 fn equal_primitives_share_an_entry() {
     let mut rng = PlannerRng::seed_from_u64(3);
     let mut sut = SparkDb::new(ExperienceParams::default());
@@ -171,6 +213,23 @@ fn databases_survive_save_and_load() {
     let fback = FlameDb::load(&fpath).unwrap();
     assert_eq!(fback.len(), 100);
     assert_eq!(fback.configurations(), 200);
+    assert_eq!(fback.params(), flame.params());
+    assert!(fback.entries().eq(flame.entries()));
+    // A version 1 file (parameters without `flame_radius`) still loads, with its default.
+    let v2 = std::fs::read(&fpath).unwrap();
+    let payload = &v2[21..v2.len() - 4];
+    let mut v1_payload = payload[..6 * 8].to_vec();
+    v1_payload.extend_from_slice(&payload[7 * 8..]);
+    let mut v1 = b"EMBEREXP".to_vec();
+    v1.extend_from_slice(&1u32.to_le_bytes());
+    v1.push(v2[12]);
+    v1.extend_from_slice(&(v1_payload.len() as u64).to_le_bytes());
+    v1.extend_from_slice(&v1_payload);
+    v1.extend_from_slice(&crc32fast::hash(&v1_payload).to_le_bytes());
+    std::fs::write(&fpath, &v1).unwrap();
+    let old = FlameDb::load(&fpath).unwrap();
+    assert_eq!(old.params(), flame.params());
+    assert!(old.entries().eq(flame.entries()));
     // Loading a FLAME file as SPARK names the mismatch.
     assert!(matches!(
         SparkDb::load(&fpath),
