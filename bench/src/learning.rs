@@ -30,6 +30,9 @@ pub enum Method {
     Spark,
     /// FLAME: retrieval by the sensed map's octoboxes.
     Flame,
+    /// A diagnostic, not a method: the test problem's own stored solution as the only local
+    /// sampler (its waypoints as components), the best experience any retrieval could give.
+    Oracle,
 }
 
 impl Method {
@@ -42,6 +45,7 @@ impl Method {
             Method::Uniform => "uniform",
             Method::Spark => "spark",
             Method::Flame => "flame",
+            Method::Oracle => "oracle",
         }
     }
 }
@@ -193,6 +197,13 @@ fn retrieve(
         Method::Uniform => Retrieval::default(),
         Method::Spark => spark.retrieve(&spark_pairs(&case.problem.scene, params)),
         Method::Flame => flame.retrieve(&octoboxes(&case.map)),
+        Method::Oracle => case
+            .problem
+            .path
+            .as_ref()
+            .map_or_else(Retrieval::default, |path| {
+                Retrieval::from_samplers(case.robot.dof(), std::slice::from_ref(path))
+            }),
     }
 }
 

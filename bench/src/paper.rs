@@ -18,7 +18,10 @@
 //! method, N): `RESULT paper dataset=<d> method=<uniform|spark|flame> n_train=<N>
 //! n_test=<n> solved=<k> mean_ms=<f> median_ms=<f> retrieval_us=<f>`, and one per (dataset, N):
 //! `RESULT paper_retrieval dataset=<d> n_train=<N> spark_entries=<e> tree_us=<f> linear_us=<f>
-//! flame_entries=<e> flame_us=<f>`.
+//! flame_entries=<e> flame_us=<f>`, and one per dataset for the oracle diagnostic (each test
+//! problem's own stored solution as the only local sampler, planned beside uniform: the ceiling
+//! of the paper's sampler): `RESULT paper_oracle dataset=<d> n_test=<n> solved=<k>
+//! mean_ms=<f> median_ms=<f> uniform_mean_ms=<f> gain=<f>`.
 //!
 //! `--quick`: N ∈ {10, 50, 100}, 25 test problems, 5 s limit — a few minutes in all.
 
@@ -181,6 +184,9 @@ struct DatasetRun {
     /// The transfer case (place problems, the can held) per N: uniform, SPARK and FLAME learned
     /// on place problems, SPARK and FLAME learned on pick problems (TX).
     transfer: Vec<Row>,
+    /// Uniform and the oracle (each test problem's own solution as the sampler), planned side
+    /// by side: the most any experience could gain with the paper's sampler.
+    oracle: Row,
 }
 
 /// A generator progress callback redrawing `label: done/count` when `done` changes.
@@ -355,11 +361,21 @@ fn run_dataset(
         eprintln!("  place N={n:<4}: {}", row.means());
         transfer.push(row);
     }
+    let eval = |m| plan_set(&cases, m, &pick.spark, &pick.flame, options);
+    let oracle = Row {
+        n: 0,
+        outcomes: vec![
+            ("uniform", eval(Method::Uniform)),
+            ("oracle", eval(Method::Oracle)),
+        ],
+    };
+    eprintln!("  oracle: {}", oracle.means());
     Ok(DatasetRun {
         name: dataset.to_string(),
         rows,
         retrieval,
         transfer,
+        oracle,
     })
 }
 
@@ -390,6 +406,17 @@ fn print_rows(title: &str, rows: &[Row], columns: &[(&str, &str)]) {
 
 fn print_tables(run: &DatasetRun) {
     print_rows(&run.name, &run.rows, &PICK_COLUMNS);
+    let (uniform, oracle) = (run.oracle.get("uniform"), run.oracle.get("oracle"));
+    println!(
+        "oracle (own solution as the sampler): solved {} mean {:.2} median {:.2} ms against uniform {} {:.2} {:.2}: {:.2}x",
+        oracle.solved,
+        oracle.mean_ms,
+        oracle.median_ms,
+        uniform.solved,
+        uniform.mean_ms,
+        uniform.median_ms,
+        uniform.mean_ms / oracle.mean_ms
+    );
     println!(
         "{:>5} | {:>9} {:>9} {:>9} | {:>9} {:>9} | {:>9} {:>9}",
         "N", "entries", "tree_us", "linear_us", "retr_S", "samplers", "FLAME", "flame_us"
@@ -573,6 +600,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     for run in &runs {
         print_results("paper_transfer", &run.name, &run.transfer);
+    }
+    for run in &runs {
+        let (uniform, oracle) = (run.oracle.get("uniform"), run.oracle.get("oracle"));
+        println!(
+            "RESULT paper_oracle dataset={} n_test={} solved={} mean_ms={:.3} median_ms={:.3} uniform_mean_ms={:.3} gain={:.2}",
+            run.name,
+            oracle.n,
+            oracle.solved,
+            oracle.mean_ms,
+            oracle.median_ms,
+            uniform.mean_ms,
+            uniform.mean_ms / oracle.mean_ms
+        );
     }
     for run in &runs {
         for r in &run.retrieval {

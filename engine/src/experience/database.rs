@@ -322,8 +322,8 @@ pub struct FlameDb {
     pub(crate) keys: Vec<OctoboxPrimitive>,
     pub(crate) values: Vec<Vec<Vec<f64>>>,
     index: FxHashMap<(BlockKey, u64), usize>,
-    /// Entries by mask and coarse cell (`2·reach + 1` octoboxes a side), so a query looks at
-    /// no more than 8 cells.
+    /// Entries by mask and coarse cell (`2·reach + 1` octoboxes a side). An entry is listed in
+    /// every cell its reach overlaps (at most 8), so a query octobox looks up its own cell only.
     cells: FxHashMap<(u64, BlockKey), Vec<u32>>,
 }
 
@@ -377,10 +377,9 @@ impl FlameDb {
         }
     }
 
-    /// The coarse cell holding octobox `key`.
-    fn cell(&self, key: BlockKey) -> BlockKey {
-        let size = 2 * self.reach() + 1;
-        key.map(|v| v.div_euclid(size))
+    /// The coarse cell holding octobox `key` (cells are `2·reach + 1` octoboxes a side).
+    fn cell(key: BlockKey, reach: i32) -> BlockKey {
+        key.map(|v| v.div_euclid(2 * reach + 1))
     }
 
     /// Adds critical configurations for an octobox.
@@ -394,11 +393,17 @@ impl FlameDb {
             return;
         }
         let i = self.keys.len();
-        let cell = self.cell(key.key);
-        self.cells
-            .entry((key.mask, cell))
-            .or_default()
-            .push(i as u32);
+        let reach = self.reach();
+        let lo = Self::cell(key.key.map(|v| v - reach), reach);
+        let hi = Self::cell(key.key.map(|v| v + reach), reach);
+        for x in lo[0]..=hi[0] {
+            for y in lo[1]..=hi[1] {
+                for z in lo[2]..=hi[2] {
+                    let list = self.cells.entry((key.mask, [x, y, z])).or_default();
+                    list.push(i as u32);
+                }
+            }
+        }
         self.index.insert((key.key, key.mask), i);
         self.keys.push(key);
         let mut configs = configs;
@@ -423,23 +428,18 @@ impl FlameDb {
     /// Entry indices matching `query`: the same occupancy mask, centres at most
     /// `flame_radius` apart (entry order).
     pub fn matches(&self, query: &OctoboxPrimitive) -> Vec<usize> {
-        let reach = self.reach();
-        let size = 2 * reach + 1;
-        let lo = query.key.map(|v| (v - reach).div_euclid(size));
-        let hi = query.key.map(|v| (v + reach).div_euclid(size));
         let mut out = Vec::new();
-        for x in lo[0]..=hi[0] {
-            for y in lo[1]..=hi[1] {
-                for z in lo[2]..=hi[2] {
-                    if let Some(list) = self.cells.get(&(query.mask, [x, y, z])) {
-                        let close = |&i: &usize| self.close(self.keys[i].key, query.key);
-                        out.extend(list.iter().map(|&i| i as usize).filter(close));
-                    }
-                }
-            }
-        }
-        out.sort_unstable();
+        self.matches_into(query, self.reach(), &mut out);
         out
+    }
+
+    /// [`FlameDb::matches`] into `out` (cleared first), with `reach` = [`FlameDb::reach`].
+    fn matches_into(&self, query: &OctoboxPrimitive, reach: i32, out: &mut Vec<usize>) {
+        out.clear();
+        if let Some(list) = self.cells.get(&(query.mask, Self::cell(query.key, reach))) {
+            let close = |&i: &usize| self.close(self.keys[i].key, query.key);
+            out.extend(list.iter().map(|&i| i as usize).filter(close));
+        }
     }
 
     /// Entry indices matching `query`, by linear scan (the oracle).
@@ -459,8 +459,10 @@ impl FlameDb {
             query_primitives: primitives.len(),
             ..Default::default()
         };
+        let (reach, mut found) = (self.reach(), Vec::new());
         for p in primitives {
-            for i in self.matches(p) {
+            self.matches_into(p, reach, &mut found);
+            for &i in &found {
                 r.entries += 1;
                 if !std::mem::replace(&mut seen[i], true) {
                     r.push_sampler(&self.values[i]);
