@@ -186,24 +186,24 @@ impl Outcome {
 }
 
 /// Retrieves for `case` with `method`.
-fn retrieve(
+fn retrieve<'a>(
     method: Method,
-    case: &TestCase,
+    case: &'a TestCase,
     params: &ExperienceParams,
-    spark: &SparkDb,
-    flame: &FlameDb,
-) -> Retrieval {
+    spark: &'a SparkDb,
+    flame: &'a FlameDb,
+) -> Retrieval<'a> {
     match method {
         Method::Uniform => Retrieval::default(),
         Method::Spark => spark.retrieve(&spark_pairs(&case.problem.scene, params)),
         Method::Flame => flame.retrieve(&octoboxes(&case.map)),
-        Method::Oracle => case
-            .problem
-            .path
-            .as_ref()
-            .map_or_else(Retrieval::default, |path| {
-                Retrieval::from_samplers(case.robot.dof(), std::slice::from_ref(path))
-            }),
+        Method::Oracle => {
+            let mut r = Retrieval::default();
+            if let Some(path) = &case.problem.path {
+                r.push_sampler(path);
+            }
+            r
+        }
     }
 }
 
@@ -224,7 +224,7 @@ pub fn plan_set(
         let r = retrieve(method, case, params, spark, flame);
         entries.push(r.entries as f64);
         samplers.push(r.samplers.len() as f64);
-        let mut sampler: Box<dyn Sampler> = match method {
+        let mut sampler: Box<dyn Sampler + '_> = match method {
             Method::Uniform => Box::new(UniformSampler),
             _ => Box::new(GlobalSampler::new(r, params.sigma, params.lambda)),
         };

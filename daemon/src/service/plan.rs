@@ -177,7 +177,7 @@ pub fn answer(
         _ => Retrieval::default(),
     };
     let local_samplers = retrieval.samplers.len() as u32;
-    let mut sampler: Box<dyn Sampler> = match method {
+    let mut sampler: Box<dyn Sampler + '_> = match method {
         Method::Uniform | Method::Auto => Box::new(UniformSampler),
         _ => Box::new(GlobalSampler::new(
             retrieval,
@@ -202,7 +202,10 @@ pub fn answer(
             ..Default::default()
         },
     };
-    match planning::plan(robot, &snap.env, &request, sampler.as_mut()) {
+    let outcome = planning::plan(robot, &snap.env, &request, sampler.as_mut());
+    // The sampler borrows the databases, which learning below extends.
+    drop(sampler);
+    match outcome {
         Ok(res) => {
             let s = res.stats;
             let mut header = PlanResponseHeader {

@@ -13,51 +13,49 @@ use super::vptree::VpTree;
 use super::ExperienceParams;
 use crate::world::map::BlockKey;
 use rustc_hash::FxHashMap;
+use std::borrow::Cow;
 
-/// What one retrieval found: the retrieved local samplers, as flat component means.
+/// What one retrieval found: the retrieved local samplers, each the list of its components'
+/// means. Samplers found in a database borrow its storage: nothing is copied.
 #[derive(Debug, Clone, Default, PartialEq)]
-pub struct Retrieval {
+pub struct Retrieval<'a> {
     /// Values per component.
     pub dof: usize,
-    /// Component means, `dof` values each.
-    pub means: Vec<f64>,
-    /// Per retrieved local sampler: the range of its components.
-    pub samplers: Vec<std::ops::Range<usize>>,
+    /// Per retrieved local sampler: its component means (`dof` values each).
+    pub samplers: Vec<Cow<'a, [Vec<f64>]>>,
     /// Primitives of the query scene.
     pub query_primitives: usize,
     /// Entries retrieved (with repetitions across query primitives).
     pub entries: usize,
 }
 
-impl Retrieval {
+impl<'a> Retrieval<'a> {
     /// A retrieval holding the given local samplers (each a list of means of length `dof`).
-    pub fn from_samplers(dof: usize, samplers: &[Vec<Vec<f64>>]) -> Self {
-        let mut r = Retrieval {
+    pub fn from_samplers(dof: usize, samplers: Vec<Vec<Vec<f64>>>) -> Self {
+        Retrieval {
             dof,
+            samplers: samplers
+                .into_iter()
+                .filter(|s| !s.is_empty())
+                .map(Cow::Owned)
+                .collect(),
             ..Default::default()
-        };
-        for s in samplers {
-            r.push_sampler(s);
         }
-        r
     }
 
-    /// Appends one local sampler (means of the wrong length are skipped).
-    pub fn push_sampler(&mut self, means: &[Vec<f64>]) {
-        if self.dof == 0 {
-            self.dof = means.first().map_or(0, Vec::len);
+    /// Appends one local sampler, borrowed (an empty one is skipped).
+    pub fn push_sampler(&mut self, means: &'a [Vec<f64>]) {
+        if let Some(first) = means.first() {
+            if self.dof == 0 {
+                self.dof = first.len();
+            }
+            self.samplers.push(Cow::Borrowed(means));
         }
-        if self.dof == 0 {
-            return;
-        }
-        let start = self.means.len() / self.dof;
-        for m in means.iter().filter(|m| m.len() == self.dof) {
-            self.means.extend_from_slice(m);
-        }
-        let end = self.means.len() / self.dof;
-        if end > start {
-            self.samplers.push(start..end);
-        }
+    }
+
+    /// Number of Gaussian components over all samplers.
+    pub fn components(&self) -> usize {
+        self.samplers.iter().map(|s| s.len()).sum()
     }
 }
 
@@ -205,13 +203,13 @@ impl SparkDb {
     }
 
     /// The local samplers of every entry near any of the scene's primitives (each entry once).
-    pub fn retrieve(&self, primitives: &[SparkPair]) -> Retrieval {
+    pub fn retrieve(&self, primitives: &[SparkPair]) -> Retrieval<'_> {
         self.gather(primitives, self.search(primitives))
     }
 
     /// The same retrieval by linear scan with [`SparkPair::distance`] (the oracle, and the
     /// benchmark's reference).
-    pub fn retrieve_linear(&self, primitives: &[SparkPair]) -> Retrieval {
+    pub fn retrieve_linear(&self, primitives: &[SparkPair]) -> Retrieval<'_> {
         let hits = primitives.iter().map(|p| self.within_linear(p)).collect();
         self.gather(primitives, hits)
     }
@@ -298,7 +296,7 @@ impl SparkDb {
     }
 
     /// Collects the samplers of the entries found for each primitive.
-    fn gather(&self, primitives: &[SparkPair], hits: Vec<Vec<usize>>) -> Retrieval {
+    fn gather(&self, primitives: &[SparkPair], hits: Vec<Vec<usize>>) -> Retrieval<'_> {
         let mut seen = vec![false; self.keys.len()];
         let mut r = Retrieval {
             query_primitives: primitives.len(),
@@ -453,7 +451,7 @@ impl FlameDb {
     }
 
     /// The local samplers of the stored octoboxes that match the query's (each entry once).
-    pub fn retrieve(&self, primitives: &[OctoboxPrimitive]) -> Retrieval {
+    pub fn retrieve(&self, primitives: &[OctoboxPrimitive]) -> Retrieval<'_> {
         let mut seen = vec![false; self.keys.len()];
         let mut r = Retrieval {
             query_primitives: primitives.len(),

@@ -7,25 +7,22 @@ use crate::planning::{PlannerRng, Sampler};
 use crate::robot::Robot;
 use rand::Rng;
 use rand_distr::{Distribution, StandardNormal};
+use std::borrow::Cow;
 
-/// A Gaussian-mixture-of-mixtures sampler mixed with uniform sampling.
+/// A Gaussian-mixture-of-mixtures sampler mixed with uniform sampling, borrowing what the
+/// retrieval found.
 #[derive(Debug, Clone)]
-pub struct GlobalSampler {
-    dof: usize,
-    /// Component means, flat (`dof` values each).
-    means: Vec<f64>,
-    /// Per local sampler: its range of components.
-    samplers: Vec<std::ops::Range<usize>>,
+pub struct GlobalSampler<'a> {
+    /// Per local sampler: its component means.
+    samplers: Vec<Cow<'a, [Vec<f64>]>>,
     sigma: f64,
     lambda: f64,
 }
 
-impl GlobalSampler {
-    /// Builds the sampler from a retrieval (taking its arrays, no copy).
-    pub fn new(retrieval: Retrieval, sigma: f64, lambda: f64) -> Self {
+impl<'a> GlobalSampler<'a> {
+    /// Builds the sampler from a retrieval (taking its samplers, no copy).
+    pub fn new(retrieval: Retrieval<'a>, sigma: f64, lambda: f64) -> Self {
         GlobalSampler {
-            dof: retrieval.dof,
-            means: retrieval.means,
             samplers: retrieval.samplers,
             sigma,
             lambda,
@@ -39,19 +36,23 @@ impl GlobalSampler {
 
     /// Number of Gaussian components.
     pub fn components(&self) -> usize {
-        self.means.len() / self.dof.max(1)
+        self.samplers.iter().map(|s| s.len()).sum()
     }
 }
 
-impl Sampler for GlobalSampler {
+impl Sampler for GlobalSampler<'_> {
     fn sample(&mut self, robot: &Robot, rng: &mut PlannerRng, out: &mut [f64]) {
         if self.samplers.is_empty() || rng.random::<f64>() < self.lambda {
             robot.sample_uniform(rng, out);
             return;
         }
         let s = &self.samplers[rng.random_range(0..self.samplers.len())];
-        let c = rng.random_range(s.clone());
-        let mean = &self.means[c * self.dof..(c + 1) * self.dof];
+        let mean = &s[rng.random_range(0..s.len())];
+        if mean.len() != out.len() {
+            // A component of another robot's database: ignore it.
+            robot.sample_uniform(rng, out);
+            return;
+        }
         for (o, m) in out.iter_mut().zip(mean) {
             let n: f64 = StandardNormal.sample(rng);
             *o = m + self.sigma * n;
