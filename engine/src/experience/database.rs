@@ -78,11 +78,10 @@ pub struct SparkDb {
     pub(crate) keys: Vec<SparkPair>,
     pub(crate) values: Vec<Vec<Vec<f64>>>,
     index: FxHashMap<Vec<i64>, usize>,
-    /// The distinct boxes of the entries (pairs of one scene share them), and each entry's two.
+    /// The distinct boxes of the entries (pairs of one scene share them).
     boxes: Boxes,
-    entry_boxes: Vec<[u32; 2]>,
-    /// Per distinct box, the entries holding it.
-    box_entries: Vec<Vec<u32>>,
+    /// Per distinct box, the entries holding it, each with its other box.
+    box_entries: Vec<Vec<[u32; 2]>>,
     /// The metric tree over the distinct boxes (box metric), with their ids.
     box_tree: VpTree<(RawBox, u32)>,
 }
@@ -159,11 +158,10 @@ impl SparkDb {
         }
         let i = self.keys.len();
         let pair = [self.add_box(&key.a), self.add_box(&key.b)];
-        self.box_entries[pair[0] as usize].push(i as u32);
+        self.box_entries[pair[0] as usize].push([i as u32, pair[1]]);
         if pair[1] != pair[0] {
-            self.box_entries[pair[1] as usize].push(i as u32);
+            self.box_entries[pair[1] as usize].push([i as u32, pair[0]]);
         }
-        self.entry_boxes.push(pair);
         self.keys.push(key);
         let mut configs = configs;
         dedup_means(&mut configs);
@@ -263,30 +261,31 @@ impl SparkDb {
             .collect();
         ids.iter()
             .map(|&[qa, qb]| {
-                let side = if candidates[qa as usize] <= candidates[qb as usize] {
-                    qa
+                let (s, t) = if candidates[qa as usize] <= candidates[qb as usize] {
+                    (qa, qb)
                 } else {
-                    qb
+                    (qb, qa)
                 };
-                let mut hits: Vec<usize> = near[side as usize]
-                    .iter()
-                    .flat_map(|&b| &self.box_entries[b as usize])
-                    .map(|&e| e as usize)
-                    .filter(|&e| {
-                        let [ea, eb] = self.entry_boxes[e];
-                        let straight = if is_near(qa, ea) && is_near(qb, eb) {
-                            d(qa, ea) + d(qb, eb)
+                let mut hits = Vec::new();
+                for &b in &near[s as usize] {
+                    for &[e, o] in &self.box_entries[b as usize] {
+                        // The smaller of the two pairings' sums (the same sums as
+                        // `SparkPair::distance`, whichever of the entry's boxes `b` is).
+                        let via_b = if is_near(t, o) {
+                            d(s, b) + d(t, o)
                         } else {
                             f64::INFINITY
                         };
-                        let crossed = if is_near(qa, eb) && is_near(qb, ea) {
-                            d(qa, eb) + d(qb, ea)
+                        let via_o = if is_near(s, o) && is_near(t, b) {
+                            d(s, o) + d(t, b)
                         } else {
                             f64::INFINITY
                         };
-                        straight.min(crossed) <= r
-                    })
-                    .collect();
+                        if via_b.min(via_o) <= r {
+                            hits.push(e as usize);
+                        }
+                    }
+                }
                 // Entry order, as the linear scan: the sampler does not depend on tree layout.
                 hits.sort_unstable();
                 hits.dedup();
