@@ -19,9 +19,7 @@ use std::borrow::Cow;
 /// means. Samplers found in a database borrow its storage: nothing is copied.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Retrieval<'a> {
-    /// Values per component.
-    pub dof: usize,
-    /// Per retrieved local sampler: its component means (`dof` values each).
+    /// Per retrieved local sampler: its component means.
     pub samplers: Vec<Cow<'a, [Vec<f64>]>>,
     /// Primitives of the query scene.
     pub query_primitives: usize,
@@ -30,10 +28,9 @@ pub struct Retrieval<'a> {
 }
 
 impl<'a> Retrieval<'a> {
-    /// A retrieval holding the given local samplers (each a list of means of length `dof`).
-    pub fn from_samplers(dof: usize, samplers: Vec<Vec<Vec<f64>>>) -> Self {
+    /// A retrieval holding the given local samplers (each a list of means).
+    pub fn from_samplers(samplers: Vec<Vec<Vec<f64>>>) -> Self {
         Retrieval {
-            dof,
             samplers: samplers
                 .into_iter()
                 .filter(|s| !s.is_empty())
@@ -45,17 +42,9 @@ impl<'a> Retrieval<'a> {
 
     /// Appends one local sampler, borrowed (an empty one is skipped).
     pub fn push_sampler(&mut self, means: &'a [Vec<f64>]) {
-        if let Some(first) = means.first() {
-            if self.dof == 0 {
-                self.dof = first.len();
-            }
+        if !means.is_empty() {
             self.samplers.push(Cow::Borrowed(means));
         }
-    }
-
-    /// Number of Gaussian components over all samplers.
-    pub fn components(&self) -> usize {
-        self.samplers.iter().map(|s| s.len()).sum()
     }
 }
 

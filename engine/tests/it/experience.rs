@@ -270,7 +270,7 @@ fn databases_survive_save_and_load() {
 fn sampler_matches_its_components() {
     let robot = Robot::builtin("fetch").unwrap();
     let mean = vec![0.2, 0.3, 0.1, 0.0, 0.5, 0.0, -0.4, 0.0];
-    let retrieval = Retrieval::from_samplers(8, vec![vec![mean.clone()]]);
+    let retrieval = Retrieval::from_samplers(vec![vec![mean.clone()]]);
     let mut sut = GlobalSampler::new(retrieval, 0.1, 0.0);
     let mut rng = PlannerRng::seed_from_u64(5);
     let n = 20000;
@@ -317,7 +317,7 @@ fn sampler_falls_back_to_uniform_when_nothing_is_retrieved() {
 fn lambda_mixes_uniform_and_biased_samples() {
     let robot = Robot::builtin("fetch").unwrap();
     let mean = vec![0.2, 0.3, 0.1, 0.0, 0.5, 0.0, -0.4, 0.0];
-    let retrieval = Retrieval::from_samplers(8, vec![vec![mean.clone()]]);
+    let retrieval = Retrieval::from_samplers(vec![vec![mean.clone()]]);
     let mut sut = GlobalSampler::new(retrieval, 0.01, 0.5);
     let mut rng = PlannerRng::seed_from_u64(7);
     let mut q = [0.0; 8];
