@@ -308,9 +308,10 @@ pub struct FlameDb {
     pub(crate) keys: Vec<OctoboxPrimitive>,
     pub(crate) values: Vec<Vec<Vec<f64>>>,
     index: FxHashMap<(BlockKey, u64), usize>,
-    /// Entries by mask and coarse cell (`2·reach + 1` octoboxes a side). An entry is listed in
-    /// every cell its reach overlaps (at most 8), so a query octobox looks up its own cell only.
-    cells: FxHashMap<(u64, BlockKey), Vec<u32>>,
+    /// Entries by mask, then by coarse cell (`2·reach + 1` octoboxes a side). An entry is listed
+    /// in every cell its reach overlaps (at most 8), so a query octobox looks up its own cell
+    /// only; the small map of masks rejects most query octoboxes first.
+    cells: FxHashMap<u64, FxHashMap<BlockKey, Vec<u32>>>,
 }
 
 impl FlameDb {
@@ -385,8 +386,8 @@ impl FlameDb {
         for x in lo[0]..=hi[0] {
             for y in lo[1]..=hi[1] {
                 for z in lo[2]..=hi[2] {
-                    let list = self.cells.entry((key.mask, [x, y, z])).or_default();
-                    list.push(i as u32);
+                    let cells = self.cells.entry(key.mask).or_default();
+                    cells.entry([x, y, z]).or_default().push(i as u32);
                 }
             }
         }
@@ -422,7 +423,8 @@ impl FlameDb {
     /// [`FlameDb::matches`] into `out` (cleared first), with `reach` = [`FlameDb::reach`].
     fn matches_into(&self, query: &OctoboxPrimitive, reach: i32, out: &mut Vec<usize>) {
         out.clear();
-        if let Some(list) = self.cells.get(&(query.mask, Self::cell(query.key, reach))) {
+        let cells = self.cells.get(&query.mask);
+        if let Some(list) = cells.and_then(|c| c.get(&Self::cell(query.key, reach))) {
             let close = |&i: &usize| self.close(self.keys[i].key, query.key);
             out.extend(list.iter().map(|&i| i as usize).filter(close));
         }
