@@ -33,11 +33,6 @@ impl<'a> GlobalSampler<'a> {
     pub fn local_samplers(&self) -> usize {
         self.samplers.len()
     }
-
-    /// Number of Gaussian components.
-    pub fn components(&self) -> usize {
-        self.samplers.iter().map(|s| s.len()).sum()
-    }
 }
 
 impl Sampler for GlobalSampler<'_> {

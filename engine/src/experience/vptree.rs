@@ -42,16 +42,6 @@ struct Node {
 const SLACK: f64 = 1e-6;
 
 impl<T: Copy> VpTree<T> {
-    /// Number of indexed items.
-    pub fn len(&self) -> usize {
-        self.items.len() + self.pending.len()
-    }
-
-    /// True when empty.
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-
     /// Adds `item`; rebuilds (with `dist`) when the linear buffer has grown past a quarter.
     pub fn insert(&mut self, item: T, dist: impl Fn(&T, &T) -> f64) {
         self.pending.push(item);
