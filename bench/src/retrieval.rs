@@ -4,7 +4,8 @@
 //! queried with the pairs of fresh scenes of the same dataset — the paper's situation, where
 //! most of a low-variation database lies within the radius.
 //!
-//! Flags: `--sizes N,...` (default 1000,4000,17000), `--queries N` (default 50). Ends with one
+//! Flags: `--sizes N,...` (default 1000,4000,17000), `--queries N` (default 50), `--dataset D`
+//! (default shelf_height_rot). Ends with one
 //! `RESULT retrieval size=<entries> tree_us=<median> linear_us=<median> entries=<mean retrieved>
 //! samplers=<mean unique>` per size.
 
@@ -22,6 +23,9 @@ pub struct Args {
     /// Database sizes (entries), comma separated.
     #[arg(long, value_delimiter = ',', default_value = "1000,4000,17000")]
     sizes: Vec<usize>,
+    /// The generated dataset whose scenes fill and query the databases.
+    #[arg(long, default_value = "shelf_height_rot")]
+    dataset: String,
     /// Query scenes per size.
     #[arg(long, default_value_t = 50)]
     queries: usize,
@@ -29,7 +33,8 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let robot = Robot::builtin("fetch")?;
-    let spec = problems::dataset("shelf_height_rot").expect("built-in dataset");
+    let spec = problems::dataset(&args.dataset)
+        .ok_or_else(|| anyhow::anyhow!("unknown dataset {:?}", args.dataset))?;
     let params = ExperienceParams::default();
     let mut rng = PlannerRng::seed_from_u64(5);
     let queries: Vec<Vec<SparkPair>> = (0..args.queries)

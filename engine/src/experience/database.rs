@@ -177,37 +177,70 @@ impl SparkDb {
         }
     }
 
-    /// Entry indices within `d_radius` of `query` (metric tree).
+    /// Entry indices within `d_radius` of `query` (metric tree), in entry order.
     pub fn within(&self, query: &SparkPair) -> Vec<usize> {
-        self.search(std::slice::from_ref(query)).swap_remove(0)
+        let mut hits = Vec::new();
+        self.search(std::slice::from_ref(query), |_, e| hits.push(e as usize));
+        hits.sort_unstable();
+        hits.dedup();
+        hits
     }
 
-    /// Entry indices within `d_radius` of `query` by linear scan (the oracle).
+    /// Entry indices within `d_radius` of `query` by linear scan (the oracle), in entry order.
     pub fn within_linear(&self, query: &SparkPair) -> Vec<usize> {
         (0..self.keys.len())
             .filter(|&i| query.distance(&self.keys[i], &self.params) <= self.params.d_radius)
             .collect()
     }
 
-    /// The local samplers of every entry near any of the scene's primitives (each entry once).
+    /// The local samplers of every entry near any of the scene's primitives, each entry once
+    /// and in entry order.
     pub fn retrieve(&self, primitives: &[SparkPair]) -> Retrieval<'_> {
-        self.gather(primitives, self.search(primitives))
+        // `stamp[e]` = 1 + the last query pair that found entry `e` (0: none), so repeated
+        // finds within one pair count once and the union needs no sorting of hit lists.
+        let mut stamp = vec![0u32; self.keys.len()];
+        let (mut found, mut union) = (0, Vec::new());
+        self.search(primitives, |p, e| {
+            let s = &mut stamp[e as usize];
+            if *s != p + 1 {
+                if *s == 0 {
+                    union.push(e);
+                }
+                *s = p + 1;
+                found += 1;
+            }
+        });
+        union.sort_unstable();
+        self.gather(
+            primitives.len(),
+            found,
+            union.into_iter().map(|e| e as usize),
+        )
     }
 
     /// The same retrieval by linear scan with [`SparkPair::distance`] (the oracle, and the
     /// benchmark's reference).
     pub fn retrieve_linear(&self, primitives: &[SparkPair]) -> Retrieval<'_> {
-        let hits = primitives.iter().map(|p| self.within_linear(p)).collect();
-        self.gather(primitives, hits)
+        let mut hit = vec![false; self.keys.len()];
+        let mut found = 0;
+        for p in primitives {
+            for e in self.within_linear(p) {
+                hit[e] = true;
+                found += 1;
+            }
+        }
+        let union = (0..hit.len()).filter(|&e| hit[e]);
+        self.gather(primitives.len(), found, union)
     }
 
-    /// For each query pair, the entries within `d_radius`, in entry order.
+    /// Calls `hit(p, e)` for each query pair `p` and entry `e` within `d_radius` of it (an
+    /// entry may be reported more than once per pair).
     ///
     /// A pair is within `r` only if, in one of the two pairings, each of its boxes lies within
     /// `r` of its counterpart (box distances are not negative). So the metric tree over the
-    /// distinct boxes finds the boxes within `r` of each query box, and only the entries holding
-    /// such a box are tested, with the same sums, bit for bit, as [`SparkPair::distance`].
-    fn search(&self, primitives: &[SparkPair]) -> Vec<Vec<usize>> {
+    /// distinct boxes finds the boxes near each query box, and only the entries holding such a
+    /// box are tested, with the same sums, bit for bit, as [`SparkPair::distance`].
+    fn search(&self, primitives: &[SparkPair], mut hit: impl FnMut(u32, u32)) {
         let (r, params) = (self.params.d_radius, &self.params);
         let mut query = Boxes::default();
         let ids: Vec<[u32; 2]> = primitives
@@ -248,53 +281,48 @@ impl SparkDb {
             .iter()
             .map(|n| n.iter().map(|&b| self.box_entries[b as usize].len()).sum())
             .collect();
-        ids.iter()
-            .map(|&[qa, qb]| {
-                let (s, t) = if candidates[qa as usize] <= candidates[qb as usize] {
-                    (qa, qb)
-                } else {
-                    (qb, qa)
-                };
-                let mut hits = Vec::new();
-                for &b in &near[s as usize] {
-                    for &[e, o] in &self.box_entries[b as usize] {
-                        // The smaller of the two pairings' sums (the same sums as
-                        // `SparkPair::distance`, whichever of the entry's boxes `b` is).
-                        let via_b = if is_near(t, o) {
-                            d(s, b) + d(t, o)
-                        } else {
-                            f64::INFINITY
-                        };
-                        let via_o = if is_near(s, o) && is_near(t, b) {
-                            d(s, o) + d(t, b)
-                        } else {
-                            f64::INFINITY
-                        };
-                        if via_b.min(via_o) <= r {
-                            hits.push(e as usize);
-                        }
+        for (p, &[qa, qb]) in ids.iter().enumerate() {
+            let (s, t) = if candidates[qa as usize] <= candidates[qb as usize] {
+                (qa, qb)
+            } else {
+                (qb, qa)
+            };
+            for &b in &near[s as usize] {
+                for &[e, o] in &self.box_entries[b as usize] {
+                    // The smaller of the two pairings' sums (the same sums as
+                    // `SparkPair::distance`, whichever of the entry's boxes `b` is).
+                    let via_b = if is_near(t, o) {
+                        d(s, b) + d(t, o)
+                    } else {
+                        f64::INFINITY
+                    };
+                    let via_o = if is_near(s, o) && is_near(t, b) {
+                        d(s, o) + d(t, b)
+                    } else {
+                        f64::INFINITY
+                    };
+                    if via_b.min(via_o) <= r {
+                        hit(p as u32, e);
                     }
                 }
-                // Entry order, as the linear scan: the sampler does not depend on tree layout.
-                hits.sort_unstable();
-                hits.dedup();
-                hits
-            })
-            .collect()
+            }
+        }
     }
 
-    /// Collects the samplers of the entries found for each primitive.
-    fn gather(&self, primitives: &[SparkPair], hits: Vec<Vec<usize>>) -> Retrieval<'_> {
-        let mut seen = vec![false; self.keys.len()];
+    /// The retrieval of the entries `union` (in entry order), found `found` times in all.
+    fn gather(
+        &self,
+        query_primitives: usize,
+        found: usize,
+        union: impl Iterator<Item = usize>,
+    ) -> Retrieval<'_> {
         let mut r = Retrieval {
-            query_primitives: primitives.len(),
+            query_primitives,
+            entries: found,
             ..Default::default()
         };
-        for i in hits.into_iter().flatten() {
-            r.entries += 1;
-            if !std::mem::replace(&mut seen[i], true) {
-                r.push_sampler(&self.values[i]);
-            }
+        for e in union {
+            r.push_sampler(&self.values[e]);
         }
         r
     }
