@@ -8,8 +8,8 @@
 //! - [`FlameDb`]: octoboxes with the same occupancy mask whose centres lie within
 //!   `flame_radius` (a hash lookup by mask and coarse cell).
 
-use super::primitive::{raw_distance, BoxPrimitive, OctoboxPrimitive, RawBox, SparkPair};
-use super::vptree::VpTree;
+use super::primitive::{OctoboxPrimitive, SparkPair};
+use super::spark_index::SparkIndex;
 use super::ExperienceParams;
 use crate::world::map::BlockKey;
 use rustc_hash::FxHashMap;
@@ -67,37 +67,8 @@ pub struct SparkDb {
     pub(crate) keys: Vec<SparkPair>,
     pub(crate) values: Vec<Vec<Vec<f64>>>,
     index: FxHashMap<Vec<i64>, usize>,
-    /// The distinct boxes of the entries (pairs of one scene share them).
-    boxes: Boxes,
-    /// Per distinct box, the entries holding it, each with its other box.
-    box_entries: Vec<Vec<[u32; 2]>>,
-    /// The metric tree over the distinct boxes (box metric), with their ids.
-    box_tree: VpTree<(RawBox, u32)>,
-}
-
-/// Distinct boxes, numbered in order of arrival (bit-exact equality).
-#[derive(Debug, Clone, Default)]
-struct Boxes {
-    list: Vec<RawBox>,
-    ids: FxHashMap<[u64; 10], u32>,
-}
-
-impl Boxes {
-    fn id(&mut self, b: &BoxPrimitive) -> u32 {
-        let raw = b.raw();
-        let mut bits = [0u64; 10];
-        for (slot, v) in bits
-            .iter_mut()
-            .zip(raw.t.iter().chain(&raw.q).chain(&raw.s))
-        {
-            *slot = v.to_bits();
-        }
-        let next = self.list.len() as u32;
-        *self.ids.entry(bits).or_insert_with(|| {
-            self.list.push(raw);
-            next
-        })
-    }
+    /// The retrieval index over the entries.
+    search_index: SparkIndex,
 }
 
 impl SparkDb {
@@ -146,28 +117,12 @@ impl SparkDb {
             return;
         }
         let i = self.keys.len();
-        let pair = [self.add_box(&key.a), self.add_box(&key.b)];
-        self.box_entries[pair[0] as usize].push([i as u32, pair[1]]);
-        if pair[1] != pair[0] {
-            self.box_entries[pair[1] as usize].push([i as u32, pair[0]]);
-        }
+        self.search_index.add(i as u32, &key, &self.params);
         self.keys.push(key);
         let mut configs = configs;
         dedup_means(&mut configs);
         self.values.push(configs);
         self.index.insert(dk, i);
-    }
-
-    /// The id of a box, indexing it in the box tree when it is new.
-    fn add_box(&mut self, b: &BoxPrimitive) -> u32 {
-        let id = self.boxes.id(b);
-        if id as usize == self.box_entries.len() {
-            self.box_entries.push(Vec::new());
-            let params = &self.params;
-            self.box_tree
-                .insert((b.raw(), id), |x, y| raw_distance(&x.0, &y.0, params));
-        }
-        id
     }
 
     /// Adds every entry of `other`.
@@ -180,7 +135,10 @@ impl SparkDb {
     /// Entry indices within `d_radius` of `query` (metric tree), in entry order.
     pub fn within(&self, query: &SparkPair) -> Vec<usize> {
         let mut hits = Vec::new();
-        self.search(std::slice::from_ref(query), |_, e| hits.push(e as usize));
+        self.search_index
+            .search(&self.params, std::slice::from_ref(query), |_, e| {
+                hits.push(e as usize)
+            });
         hits.sort_unstable();
         hits.dedup();
         hits
@@ -200,7 +158,7 @@ impl SparkDb {
         // finds within one pair count once and the union needs no sorting of hit lists.
         let mut stamp = vec![0u32; self.keys.len()];
         let (mut found, mut union) = (0, Vec::new());
-        self.search(primitives, |p, e| {
+        self.search_index.search(&self.params, primitives, |p, e| {
             let s = &mut stamp[e as usize];
             if *s != p + 1 {
                 if *s == 0 {
@@ -231,82 +189,6 @@ impl SparkDb {
         }
         let union = (0..hit.len()).filter(|&e| hit[e]);
         self.gather(primitives.len(), found, union)
-    }
-
-    /// Calls `hit(p, e)` for each query pair `p` and entry `e` within `d_radius` of it (an
-    /// entry may be reported more than once per pair).
-    ///
-    /// A pair is within `r` only if, in one of the two pairings, each of its boxes lies within
-    /// `r` of its counterpart (box distances are not negative). So the metric tree over the
-    /// distinct boxes finds the boxes near each query box, and only the entries holding such a
-    /// box are tested, with the same sums, bit for bit, as [`SparkPair::distance`].
-    fn search(&self, primitives: &[SparkPair], mut hit: impl FnMut(u32, u32)) {
-        let (r, params) = (self.params.d_radius, &self.params);
-        let mut query = Boxes::default();
-        let ids: Vec<[u32; 2]> = primitives
-            .iter()
-            .map(|p| [query.id(&p.a), query.id(&p.b)])
-            .collect();
-        let (nq, nb) = (query.list.len(), self.boxes.list.len());
-        // Per query box: its near boxes, and the same as a bit set for quick rejection. Their
-        // distances: `slot[box]` indexes `dist`, `nq` values per near box (infinite where the box
-        // is not near that query box).
-        const FAR: u32 = u32::MAX;
-        let words = nb.div_ceil(64);
-        let mut bits = vec![0u64; nq * words];
-        let mut slot = vec![FAR; nb];
-        let mut dist: Vec<f64> = Vec::new();
-        let mut near: Vec<Vec<u32>> = vec![Vec::new(); nq];
-        for (qi, qb) in query.list.iter().enumerate() {
-            let d = |b: &(RawBox, u32)| raw_distance(qb, &b.0, params);
-            self.box_tree.within(r, d, |b, known| {
-                let id = b.1 as usize;
-                if slot[id] == FAR {
-                    slot[id] = (dist.len() / nq) as u32;
-                    dist.resize(dist.len() + nq, f64::INFINITY);
-                }
-                // Subtrees reported wholesale come without distances.
-                dist[slot[id] as usize * nq + qi] = known.unwrap_or_else(|| d(b));
-                bits[qi * words + id / 64] |= 1 << (id % 64);
-                near[qi].push(b.1);
-            });
-        }
-        let is_near =
-            |q: u32, b: u32| bits[q as usize * words + b as usize / 64] >> (b % 64) & 1 != 0;
-        let d = |q: u32, b: u32| dist[slot[b as usize] as usize * nq + q as usize];
-        // An entry within `r` holds a box near each of the query pair's boxes, so the entries
-        // of either query box's near boxes are enough: take the shorter list (a box every scene
-        // shares, like the floor, is in thousands of entries).
-        let candidates: Vec<usize> = near
-            .iter()
-            .map(|n| n.iter().map(|&b| self.box_entries[b as usize].len()).sum())
-            .collect();
-        for (p, &[qa, qb]) in ids.iter().enumerate() {
-            let (s, t) = if candidates[qa as usize] <= candidates[qb as usize] {
-                (qa, qb)
-            } else {
-                (qb, qa)
-            };
-            for &b in &near[s as usize] {
-                for &[e, o] in &self.box_entries[b as usize] {
-                    // The smaller of the two pairings' sums (the same sums as
-                    // `SparkPair::distance`, whichever of the entry's boxes `b` is).
-                    let via_b = if is_near(t, o) {
-                        d(s, b) + d(t, o)
-                    } else {
-                        f64::INFINITY
-                    };
-                    let via_o = if is_near(s, o) && is_near(t, b) {
-                        d(s, o) + d(t, b)
-                    } else {
-                        f64::INFINITY
-                    };
-                    if via_b.min(via_o) <= r {
-                        hit(p as u32, e);
-                    }
-                }
-            }
-        }
     }
 
     /// The retrieval of the entries `union` (in entry order), found `found` times in all.

@@ -4,7 +4,8 @@
 //! - [`primitive`]: local primitives (SPARK box pairs, FLAME octoboxes) and their distances;
 //! - [`criticality`]: which path configurations belong to a primitive;
 //! - [`database`]: primitive → local sampler, with radius retrieval (SPARK, exact metric tree)
-//!   and mask-match retrieval (FLAME); [`vptree`] is the metric tree; [`file`] the on-disk form;
+//!   and mask-match retrieval (FLAME); `spark_index` holds SPARK's index and [`vptree`] its
+//!   metric tree; [`file`] the on-disk form;
 //! - [`sampler`]: the global sampler (λ-mix of uniform and the retrieved Gaussian mixtures) that
 //!   plugs into the planner;
 //! - [`train`]: learning from solved paths.
@@ -28,6 +29,7 @@ pub mod database;
 pub mod file;
 pub mod primitive;
 pub mod sampler;
+mod spark_index;
 pub mod train;
 pub mod vptree;
 
