@@ -1,20 +1,29 @@
-//! `retrieval`: SPARK retrieval time against database size, metric tree against linear scan.
+//! `retrieval`: SPARK and FLAME retrieval time against database size, against linear scans.
 //! Databases are filled with the SPARK pairs of random `shelf_height_rot` scenes (4 random
 //! configurations each: retrieval cost does not depend on what the configurations are), then
 //! queried with the pairs of fresh scenes of the same dataset — the paper's situation, where
 //! most of a low-variation database lies within the radius.
 //!
+//! FLAME's databases hold the octoboxes above the floor of the sensed maps of random scenes of
+//! the same dataset (a superset of the critical ones training would keep: more entries per
+//! scene, so longer match lists than real training gives), queried with every octobox of
+//! fresh scenes' sensed maps, as planning does.
+//!
 //! Flags: `--sizes N,...` (default 1000,4000,17000), `--queries N` (default 50), `--dataset D`
-//! (default shelf_height_rot). Ends with one
+//! (default shelf_height_rot), `--no-flame`. Ends with one
 //! `RESULT retrieval size=<entries> tree_us=<median> linear_us=<median> entries=<mean retrieved>
-//! samplers=<mean unique>` per size.
+//! samplers=<mean unique>` per size, then one `RESULT retrieval_flame size=<entries>
+//! lookup_us=<median> linear_us=<median> entries=<mean retrieved> samplers=<mean unique>` per
+//! size.
 
+use crate::learning::map_of;
 use crate::stats::summary;
-use ember_engine::experience::primitive::spark_pairs;
-use ember_engine::experience::{ExperienceParams, SparkDb, SparkPair};
+use ember_engine::experience::primitive::{octoboxes, spark_pairs};
+use ember_engine::experience::{ExperienceParams, FlameDb, OctoboxPrimitive, SparkDb, SparkPair};
 use ember_engine::planning::PlannerRng;
 use ember_engine::problems;
 use ember_engine::robot::Robot;
+use ember_engine::world::map::MapParams;
 use rand::SeedableRng;
 use std::time::Instant;
 
@@ -29,6 +38,9 @@ pub struct Args {
     /// Query scenes per size.
     #[arg(long, default_value_t = 50)]
     queries: usize,
+    /// Skip FLAME (its maps take ~0.2 s per scene to render).
+    #[arg(long)]
+    no_flame: bool,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -52,14 +64,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         while db.len() < size {
             let scene = problems::sample_scene(&spec, &mut rng);
             for pair in spark_pairs(&scene, &params) {
-                let configs = (0..4)
-                    .map(|_| {
-                        let mut q = vec![0.0; robot.dof()];
-                        robot.sample_uniform(&mut rng, &mut q);
-                        q
-                    })
-                    .collect();
-                db.insert(pair, configs);
+                db.insert(pair, random_configs(&robot, &mut rng));
             }
         }
         let (mut tree, mut linear, mut entries, mut samplers) = (Vec::new(), Vec::new(), 0.0, 0.0);
@@ -88,8 +93,83 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             db.len()
         ));
     }
+    if !args.no_flame {
+        results.extend(flame(&args, &spec, &robot, &mut rng)?);
+    }
     for r in results {
         println!("{r}");
     }
     Ok(())
+}
+
+/// FLAME lookups against database size, against the linear scan: the `RESULT` lines.
+fn flame(
+    args: &Args,
+    spec: &problems::DatasetSpec,
+    robot: &Robot,
+    rng: &mut PlannerRng,
+) -> anyhow::Result<Vec<String>> {
+    let params = ExperienceParams::default();
+    let map_params = MapParams::default();
+    let n_queries = args.queries.min(20);
+    let queries: Vec<Vec<OctoboxPrimitive>> = (0..n_queries)
+        .map(|_| Ok(octoboxes(&map_of(&problems::sample_scene(spec, rng))?)))
+        .collect::<anyhow::Result<_>>()?;
+    let mut db = FlameDb::new(params, map_params.resolution);
+    let mut sizes = args.sizes.clone();
+    sizes.sort_unstable();
+    println!(
+        "{:>8} {:>10} {:>10} {:>9} {:>9}  (FLAME, {n_queries} query maps of ~{} octoboxes)",
+        "entries",
+        "lookup_us",
+        "linear_us",
+        "retrieved",
+        "samplers",
+        queries.iter().map(Vec::len).sum::<usize>() / n_queries.max(1)
+    );
+    let mut results = Vec::new();
+    for size in sizes {
+        while db.len() < size {
+            let map = map_of(&problems::sample_scene(spec, rng))?;
+            for o in octoboxes(&map) {
+                if map.block_center(o.key)[2] > 0.05 && db.len() < size {
+                    db.insert(o, random_configs(robot, rng));
+                }
+            }
+        }
+        let (mut fast, mut linear, mut entries, mut samplers) = (Vec::new(), Vec::new(), 0.0, 0.0);
+        for q in &queries {
+            let t = Instant::now();
+            let r = db.retrieve(q);
+            fast.push(t.elapsed().as_secs_f64() * 1e6);
+            let t = Instant::now();
+            let l: usize = q.iter().map(|o| db.matches_linear(o).len()).sum();
+            linear.push(t.elapsed().as_secs_f64() * 1e6);
+            anyhow::ensure!(r.entries == l, "FLAME lookups and linear scan disagree");
+            entries += r.entries as f64 / queries.len() as f64;
+            samplers += r.samplers.len() as f64 / queries.len() as f64;
+        }
+        let (lookup_us, _, _) = summary(&mut fast);
+        let (linear_us, _, _) = summary(&mut linear);
+        println!(
+            "{:>8} {lookup_us:>10.1} {linear_us:>10.1} {entries:>9.0} {samplers:>9.0}",
+            db.len()
+        );
+        results.push(format!(
+            "RESULT retrieval_flame size={} lookup_us={lookup_us:.1} linear_us={linear_us:.1} entries={entries:.0} samplers={samplers:.0}",
+            db.len()
+        ));
+    }
+    Ok(results)
+}
+
+/// Four random configurations: retrieval cost does not depend on what they are.
+fn random_configs(robot: &Robot, rng: &mut PlannerRng) -> Vec<Vec<f64>> {
+    (0..4)
+        .map(|_| {
+            let mut q = vec![0.0; robot.dof()];
+            robot.sample_uniform(rng, &mut q);
+            q
+        })
+        .collect()
 }

@@ -220,8 +220,9 @@ pub struct FlameDb {
     index: FxHashMap<(BlockKey, u64), usize>,
     /// Entries by mask, then by coarse cell (`2·reach + 1` octoboxes a side). An entry is listed
     /// in every cell its reach overlaps (at most 8), so a query octobox looks up its own cell
-    /// only; the small map of masks rejects most query octoboxes first.
-    cells: FxHashMap<u64, FxHashMap<BlockKey, Vec<u32>>>,
+    /// only; the small map of masks rejects most query octoboxes first. Each listing keeps the
+    /// entry's octobox, so the distance test reads no entry.
+    cells: FxHashMap<u64, FxHashMap<BlockKey, Vec<(u32, BlockKey)>>>,
 }
 
 impl FlameDb {
@@ -297,7 +298,10 @@ impl FlameDb {
             for y in lo[1]..=hi[1] {
                 for z in lo[2]..=hi[2] {
                     let cells = self.cells.entry(key.mask).or_default();
-                    cells.entry([x, y, z]).or_default().push(i as u32);
+                    cells
+                        .entry([x, y, z])
+                        .or_default()
+                        .push((i as u32, key.key));
                 }
             }
         }
@@ -315,37 +319,57 @@ impl FlameDb {
         }
     }
 
-    /// True when octobox centres `a` and `b` are at most `flame_radius` apart.
-    fn close(&self, a: BlockKey, b: BlockKey) -> bool {
-        let side = 4.0 * self.resolution;
+    /// The test of [`FlameDb::close`]: `(octobox side, squared radius with slack)`.
+    fn closeness(&self) -> (f64, f64) {
+        (
+            4.0 * self.resolution,
+            self.params.flame_radius.powi(2) + 1e-12,
+        )
+    }
+
+    /// True when octobox centres `a` and `b` are at most `flame_radius` apart, given
+    /// `(side, limit)` = [`FlameDb::closeness`].
+    #[inline(always)]
+    fn close(a: BlockKey, b: BlockKey, (side, limit): (f64, f64)) -> bool {
         let d2: i64 = (0..3).map(|i| (a[i] as i64 - b[i] as i64).pow(2)).sum();
-        d2 as f64 * side * side <= self.params.flame_radius.powi(2) + 1e-12
+        d2 as f64 * side * side <= limit
     }
 
     /// Entry indices matching `query`: the same occupancy mask, centres at most
     /// `flame_radius` apart (entry order).
     pub fn matches(&self, query: &OctoboxPrimitive) -> Vec<usize> {
         let mut out = Vec::new();
-        self.matches_into(query, self.reach(), &mut out);
+        self.matches_into(query, self.reach(), self.closeness(), &mut out);
         out
     }
 
-    /// [`FlameDb::matches`] into `out` (cleared first), with `reach` = [`FlameDb::reach`].
-    fn matches_into(&self, query: &OctoboxPrimitive, reach: i32, out: &mut Vec<usize>) {
+    /// [`FlameDb::matches`] into `out` (cleared first), with `reach` = [`FlameDb::reach`] and
+    /// `closeness` = [`FlameDb::closeness`].
+    fn matches_into(
+        &self,
+        query: &OctoboxPrimitive,
+        reach: i32,
+        closeness: (f64, f64),
+        out: &mut Vec<usize>,
+    ) {
         out.clear();
         let cells = self.cells.get(&query.mask);
         if let Some(list) = cells.and_then(|c| c.get(&Self::cell(query.key, reach))) {
-            let close = |&i: &usize| self.close(self.keys[i].key, query.key);
-            out.extend(list.iter().map(|&i| i as usize).filter(close));
+            for &(i, key) in list {
+                if Self::close(key, query.key, closeness) {
+                    out.push(i as usize);
+                }
+            }
         }
     }
 
     /// Entry indices matching `query`, by linear scan (the oracle).
     pub fn matches_linear(&self, query: &OctoboxPrimitive) -> Vec<usize> {
+        let closeness = self.closeness();
         (0..self.keys.len())
             .filter(|&i| {
                 let k = &self.keys[i];
-                k.mask == query.mask && self.close(k.key, query.key)
+                k.mask == query.mask && Self::close(k.key, query.key, closeness)
             })
             .collect()
     }
@@ -357,9 +381,9 @@ impl FlameDb {
             query_primitives: primitives.len(),
             ..Default::default()
         };
-        let (reach, mut found) = (self.reach(), Vec::new());
+        let (reach, closeness, mut found) = (self.reach(), self.closeness(), Vec::new());
         for p in primitives {
-            self.matches_into(p, reach, &mut found);
+            self.matches_into(p, reach, closeness, &mut found);
             for &i in &found {
                 r.entries += 1;
                 if !std::mem::replace(&mut seen[i], true) {
