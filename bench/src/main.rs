@@ -6,7 +6,7 @@
 //! - `experience --train DIR --test DIR...`: the paper's experiment (uniform vs SPARK vs FLAME);
 //! - `ipc`: cloud hand-off and plan round-trip overhead through a real daemon;
 //! - `monitor`: plan latency with monitoring over Zenoh on against off;
-//! - `retrieval`: SPARK retrieval time against database size (metric tree, linear scan);
+//! - `retrieval`: SPARK and FLAME retrieval time against database size (against linear scans);
 //! - `paper`: the paper's experiments (training-size sweep, retrieval scaling), tables and plots.
 
 mod collision;
@@ -45,7 +45,7 @@ enum Bench {
     Ipc(ipc::Args),
     /// Plan latency with monitoring over Zenoh on against off (two real daemons).
     Monitor(monitor::Args),
-    /// SPARK retrieval time against database size: metric tree and linear scan.
+    /// SPARK and FLAME retrieval time against database size, against linear scans.
     Retrieval(retrieval::Args),
     /// The paper's experiments: training-size sweep on the shelf datasets, tables and plots.
     Paper(paper::Args),
