@@ -35,7 +35,7 @@ pub struct Args {
     /// The generated dataset whose scenes fill and query the databases.
     #[arg(long, default_value = "shelf_height_rot")]
     dataset: String,
-    /// Query scenes per size.
+    /// Query scenes per size (FLAME renders at most 20 of them).
     #[arg(long, default_value_t = 50)]
     queries: usize,
     /// Skip FLAME (its maps take ~0.2 s per scene to render).
