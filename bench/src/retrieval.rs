@@ -18,6 +18,7 @@
 
 use crate::learning::map_of;
 use crate::stats::summary;
+use ember_engine::experience::database::Retrieval;
 use ember_engine::experience::primitive::{octoboxes, spark_pairs};
 use ember_engine::experience::{ExperienceParams, FlameDb, OctoboxPrimitive, SparkDb, SparkPair};
 use ember_engine::planning::PlannerRng;
@@ -67,31 +68,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 db.insert(pair, random_configs(&robot, &mut rng));
             }
         }
-        let (mut tree, mut linear, mut entries, mut samplers) = (Vec::new(), Vec::new(), 0.0, 0.0);
-        for q in &queries {
-            let t = Instant::now();
-            let r = db.retrieve(q);
-            tree.push(t.elapsed().as_secs_f64() * 1e6);
-            let t = Instant::now();
-            let l = db.retrieve_linear(q);
-            linear.push(t.elapsed().as_secs_f64() * 1e6);
-            anyhow::ensure!(
-                r.entries == l.entries && r.samplers.len() == l.samplers.len(),
-                "tree and linear scan disagree"
-            );
-            entries += r.entries as f64 / queries.len() as f64;
-            samplers += r.samplers.len() as f64 / queries.len() as f64;
-        }
-        let (tree_us, _, _) = summary(&mut tree);
-        let (linear_us, _, _) = summary(&mut linear);
-        println!(
-            "{:>8} {tree_us:>10.1} {linear_us:>10.1} {entries:>9.0} {samplers:>9.0}",
-            db.len()
-        );
-        results.push(format!(
-            "RESULT retrieval size={} tree_us={tree_us:.1} linear_us={linear_us:.1} entries={entries:.0} samplers={samplers:.0}",
-            db.len()
-        ));
+        let timing = time_queries(
+            &queries,
+            |q| counts(&db.retrieve(q)),
+            |q| counts(&db.retrieve_linear(q)),
+        )?;
+        results.push(timing.report("retrieval", db.len(), "tree_us"));
     }
     if !args.no_flame {
         results.extend(flame(&args, &spec, &robot, &mut rng)?);
@@ -137,30 +119,80 @@ fn flame(
                 }
             }
         }
-        let (mut fast, mut linear, mut entries, mut samplers) = (Vec::new(), Vec::new(), 0.0, 0.0);
-        for q in &queries {
-            let t = Instant::now();
-            let r = db.retrieve(q);
-            fast.push(t.elapsed().as_secs_f64() * 1e6);
-            let t = Instant::now();
-            let l: usize = q.iter().map(|o| db.matches_linear(o).len()).sum();
-            linear.push(t.elapsed().as_secs_f64() * 1e6);
-            anyhow::ensure!(r.entries == l, "FLAME lookups and linear scan disagree");
-            entries += r.entries as f64 / queries.len() as f64;
-            samplers += r.samplers.len() as f64 / queries.len() as f64;
-        }
-        let (lookup_us, _, _) = summary(&mut fast);
-        let (linear_us, _, _) = summary(&mut linear);
-        println!(
-            "{:>8} {lookup_us:>10.1} {linear_us:>10.1} {entries:>9.0} {samplers:>9.0}",
-            db.len()
-        );
-        results.push(format!(
-            "RESULT retrieval_flame size={} lookup_us={lookup_us:.1} linear_us={linear_us:.1} entries={entries:.0} samplers={samplers:.0}",
-            db.len()
-        ));
+        let timing = time_queries(
+            &queries,
+            |q| counts(&db.retrieve(q)),
+            |q| {
+                let mut found: Vec<usize> = q.iter().flat_map(|o| db.matches_linear(o)).collect();
+                let entries = found.len();
+                found.sort_unstable();
+                found.dedup();
+                (entries, found.len())
+            },
+        )?;
+        results.push(timing.report("retrieval_flame", db.len(), "lookup_us"));
     }
     Ok(results)
+}
+
+/// What a retrieval found: (entries, distinct samplers).
+fn counts(r: &Retrieval) -> (usize, usize) {
+    (r.entries, r.samplers.len())
+}
+
+/// Median query times of the fast path and the linear scan, and mean sizes of what they found.
+struct Timing {
+    fast_us: f64,
+    linear_us: f64,
+    entries: f64,
+    samplers: f64,
+}
+
+/// Times `fast` and `linear` on every query. Each gives (entries found, distinct samplers), and
+/// the two must agree.
+fn time_queries<Q>(
+    queries: &[Q],
+    fast: impl Fn(&Q) -> (usize, usize),
+    linear: impl Fn(&Q) -> (usize, usize),
+) -> anyhow::Result<Timing> {
+    let (mut fast_us, mut linear_us) = (Vec::new(), Vec::new());
+    let (mut entries, mut samplers) = (0.0, 0.0);
+    for q in queries {
+        let t = Instant::now();
+        let found = fast(q);
+        fast_us.push(t.elapsed().as_secs_f64() * 1e6);
+        let t = Instant::now();
+        let expected = linear(q);
+        linear_us.push(t.elapsed().as_secs_f64() * 1e6);
+        anyhow::ensure!(
+            found == expected,
+            "fast path {found:?} and linear scan {expected:?} disagree"
+        );
+        entries += found.0 as f64 / queries.len() as f64;
+        samplers += found.1 as f64 / queries.len() as f64;
+    }
+    Ok(Timing {
+        fast_us: summary(&mut fast_us).0,
+        linear_us: summary(&mut linear_us).0,
+        entries,
+        samplers,
+    })
+}
+
+impl Timing {
+    /// Prints the table row and returns the `RESULT <name>` line (`fast_key` names the fast time).
+    fn report(&self, name: &str, size: usize, fast_key: &str) -> String {
+        let Timing {
+            fast_us,
+            linear_us,
+            entries,
+            samplers,
+        } = self;
+        println!("{size:>8} {fast_us:>10.1} {linear_us:>10.1} {entries:>9.0} {samplers:>9.0}");
+        format!(
+            "RESULT {name} size={size} {fast_key}={fast_us:.1} linear_us={linear_us:.1} entries={entries:.0} samplers={samplers:.0}"
+        )
+    }
 }
 
 /// Four random configurations: retrieval cost does not depend on what they are.
