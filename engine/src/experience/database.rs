@@ -6,8 +6,9 @@
 //!   them are tested; a linear scan is kept as the test oracle. Pairs equal up to 1 cm share one
 //!   entry.
 //! - [`FlameDb`]: octoboxes with the same occupancy mask whose centres lie within
-//!   `flame_radius` (a hash lookup by mask and coarse cell).
+//!   `flame_radius` (a hash lookup by mask and coarse cell, `flame_index.rs`).
 
+use super::flame_index::{FlameIndex, FlameMetric};
 use super::primitive::{OctoboxPrimitive, SparkPair};
 use super::spark_index::SparkIndex;
 use super::ExperienceParams;
@@ -218,17 +219,15 @@ pub struct FlameDb {
     pub(crate) keys: Vec<OctoboxPrimitive>,
     pub(crate) values: Vec<Vec<Vec<f64>>>,
     index: FxHashMap<(BlockKey, u64), usize>,
-    /// Entries by mask, then by coarse cell (`2·reach + 1` octoboxes a side). An entry is listed
-    /// in every cell its reach overlaps (at most 8), so a query octobox looks up its own cell
-    /// only; the small map of masks rejects most query octoboxes first. Each listing keeps the
-    /// entry's octobox, so the distance test reads no entry.
-    cells: FxHashMap<u64, FxHashMap<BlockKey, Vec<(u32, BlockKey)>>>,
+    /// The match index over the entries.
+    search_index: FlameIndex,
 }
 
 impl FlameDb {
     /// An empty database for maps of `resolution`.
     pub fn new(params: ExperienceParams, resolution: f64) -> Self {
         FlameDb {
+            search_index: FlameIndex::new(FlameMetric::new(&params, resolution)),
             params,
             resolution,
             ..Default::default()
@@ -265,21 +264,6 @@ impl FlameDb {
         self.keys.iter().zip(&self.values)
     }
 
-    /// How many octoboxes away a match may lie along one axis.
-    fn reach(&self) -> i32 {
-        let side = 4.0 * self.resolution;
-        if side > 0.0 {
-            (self.params.flame_radius / side + 1e-9).floor().max(0.0) as i32
-        } else {
-            0
-        }
-    }
-
-    /// The coarse cell holding octobox `key` (cells are `2·reach + 1` octoboxes a side).
-    fn cell(key: BlockKey, reach: i32) -> BlockKey {
-        key.map(|v| v.div_euclid(2 * reach + 1))
-    }
-
     /// Adds critical configurations for an octobox.
     pub fn insert(&mut self, key: OctoboxPrimitive, configs: Vec<Vec<f64>>) {
         if configs.is_empty() {
@@ -291,20 +275,7 @@ impl FlameDb {
             return;
         }
         let i = self.keys.len();
-        let reach = self.reach();
-        let lo = Self::cell(key.key.map(|v| v - reach), reach);
-        let hi = Self::cell(key.key.map(|v| v + reach), reach);
-        for x in lo[0]..=hi[0] {
-            for y in lo[1]..=hi[1] {
-                for z in lo[2]..=hi[2] {
-                    let cells = self.cells.entry(key.mask).or_default();
-                    cells
-                        .entry([x, y, z])
-                        .or_default()
-                        .push((i as u32, key.key));
-                }
-            }
-        }
+        self.search_index.add(i as u32, &key);
         self.index.insert((key.key, key.mask), i);
         self.keys.push(key);
         let mut configs = configs;
@@ -319,57 +290,22 @@ impl FlameDb {
         }
     }
 
-    /// The test of [`FlameDb::close`]: `(octobox side, squared radius with slack)`.
-    fn closeness(&self) -> (f64, f64) {
-        (
-            4.0 * self.resolution,
-            self.params.flame_radius.powi(2) + 1e-12,
-        )
-    }
-
-    /// True when octobox centres `a` and `b` are at most `flame_radius` apart, given
-    /// `(side, limit)` = [`FlameDb::closeness`].
-    #[inline(always)]
-    fn close(a: BlockKey, b: BlockKey, (side, limit): (f64, f64)) -> bool {
-        let d2: i64 = (0..3).map(|i| (a[i] as i64 - b[i] as i64).pow(2)).sum();
-        d2 as f64 * side * side <= limit
-    }
-
     /// Entry indices matching `query`: the same occupancy mask, centres at most
     /// `flame_radius` apart (entry order).
     pub fn matches(&self, query: &OctoboxPrimitive) -> Vec<usize> {
         let mut out = Vec::new();
-        self.matches_into(query, self.reach(), self.closeness(), &mut out);
+        self.search_index
+            .search(std::slice::from_ref(query), |_, e| out.push(e as usize));
         out
-    }
-
-    /// [`FlameDb::matches`] into `out` (cleared first), with `reach` = [`FlameDb::reach`] and
-    /// `closeness` = [`FlameDb::closeness`].
-    fn matches_into(
-        &self,
-        query: &OctoboxPrimitive,
-        reach: i32,
-        closeness: (f64, f64),
-        out: &mut Vec<usize>,
-    ) {
-        out.clear();
-        let cells = self.cells.get(&query.mask);
-        if let Some(list) = cells.and_then(|c| c.get(&Self::cell(query.key, reach))) {
-            for &(i, key) in list {
-                if Self::close(key, query.key, closeness) {
-                    out.push(i as usize);
-                }
-            }
-        }
     }
 
     /// Entry indices matching `query`, by linear scan (the oracle).
     pub fn matches_linear(&self, query: &OctoboxPrimitive) -> Vec<usize> {
-        let closeness = self.closeness();
+        let metric = FlameMetric::new(&self.params, self.resolution);
         (0..self.keys.len())
             .filter(|&i| {
                 let k = &self.keys[i];
-                k.mask == query.mask && Self::close(k.key, query.key, closeness)
+                k.mask == query.mask && metric.close(k.key, query.key)
             })
             .collect()
     }
@@ -381,16 +317,12 @@ impl FlameDb {
             query_primitives: primitives.len(),
             ..Default::default()
         };
-        let (reach, closeness, mut found) = (self.reach(), self.closeness(), Vec::new());
-        for p in primitives {
-            self.matches_into(p, reach, closeness, &mut found);
-            for &i in &found {
-                r.entries += 1;
-                if !std::mem::replace(&mut seen[i], true) {
-                    r.push_sampler(&self.values[i]);
-                }
+        self.search_index.search(primitives, |_, e| {
+            r.entries += 1;
+            if !std::mem::replace(&mut seen[e as usize], true) {
+                r.push_sampler(&self.values[e as usize]);
             }
-        }
+        });
         r
     }
 }

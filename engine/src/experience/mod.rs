@@ -5,7 +5,7 @@
 //! - [`criticality`]: which path configurations belong to a primitive;
 //! - [`database`]: primitive → local sampler, with radius retrieval (SPARK, exact metric tree)
 //!   and mask-match retrieval (FLAME); `spark_index` holds SPARK's index and [`vptree`] its
-//!   metric tree; [`file`] the on-disk form;
+//!   metric tree, `flame_index` FLAME's; [`file`] the on-disk form;
 //! - [`sampler`]: the global sampler (λ-mix of uniform and the retrieved Gaussian mixtures) that
 //!   plugs into the planner;
 //! - [`train`]: learning from solved paths.
@@ -27,6 +27,7 @@
 pub mod criticality;
 pub mod database;
 pub mod file;
+mod flame_index;
 pub mod primitive;
 pub mod sampler;
 mod spark_index;

@@ -163,6 +163,45 @@ fn flame_matches_equal_masks_within_the_radius_as_the_linear_scan_does() {
 }
 
 #[test]
+fn flame_matches_equal_the_linear_scan_at_every_reach() {
+    // Radii from the same octobox only (reach 0) to several octoboxes (cells of 1, 2, 4, 8),
+    // with keys on both sides of zero and far from it, and enough entries to grow the table.
+    let mut rng = PlannerRng::seed_from_u64(10);
+    for radius in [0.05, 0.1, 0.2, 0.3, 0.5] {
+        let params = ExperienceParams {
+            flame_radius: radius,
+            ..Default::default()
+        };
+        let mut sut = FlameDb::new(params, 0.02);
+        let masks = [0x1_u64, 0xf0f0, u64::MAX];
+        let offset = [0, 1, 2].map(|_| rng.random_range(-100_000..100_000));
+        let key = |rng: &mut PlannerRng, span: i32| {
+            [0, 1, 2].map(|i| offset[i] + rng.random_range(-span..span))
+        };
+        for _ in 0..2000 {
+            let k = key(&mut rng, 10);
+            let mask = masks[rng.random_range(0..masks.len())];
+            sut.insert(OctoboxPrimitive { key: k, mask }, configs(&mut rng, 1));
+        }
+        let queries: Vec<_> = (0..200)
+            .map(|_| OctoboxPrimitive {
+                key: key(&mut rng, 12),
+                mask: masks[rng.random_range(0..masks.len())],
+            })
+            .collect();
+        let mut expected = 0;
+        for q in &queries {
+            let linear = sut.matches_linear(q);
+            assert_eq!(sut.matches(q), linear, "radius {radius}, {q:?}");
+            expected += linear.len();
+        }
+        // One retrieval over all queries finds the same matches as the queries one by one.
+        assert_eq!(sut.retrieve(&queries).entries, expected, "radius {radius}");
+        assert!(expected > 0, "radius {radius}");
+    }
+}
+
+#[test]
 fn equal_primitives_share_an_entry() {
     let mut rng = PlannerRng::seed_from_u64(3);
     let mut sut = SparkDb::new(ExperienceParams::default());

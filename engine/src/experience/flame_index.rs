@@ -1,0 +1,219 @@
+//! FLAME's match index: entries by occupancy mask, then by coarse cell of the octobox lattice.
+//!
+//! Two octoboxes match when their masks are equal and their centres lie at most `flame_radius`
+//! apart, i.e. when their lattice keys differ by at most `max_d2` in squared lattice distance
+//! ([`FlameMetric`]). Cells are `2^shift ≥ 2·reach` octoboxes a side (`reach` the largest
+//! per-axis offset that can match), so an entry is listed in at most two cells per axis (eight in
+//! all) and a query octobox reads one list: a shift instead of a division finds it, and the list
+//! holds each candidate's key, so testing it reads no entry.
+
+use super::primitive::OctoboxPrimitive;
+use super::ExperienceParams;
+use crate::world::map::BlockKey;
+
+/// The exact match test on lattice keys, shared by the index and the linear-scan oracle.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(crate) struct FlameMetric {
+    /// Largest squared lattice distance that matches.
+    max_d2: i64,
+    /// Largest per-axis offset that matches: ⌊√max_d2⌋.
+    reach: i32,
+}
+
+impl FlameMetric {
+    /// The test for maps of leaf size `resolution`: centres of octoboxes (4 leaves a side) at
+    /// most `flame_radius` apart, with 1e-12 m² of slack against rounding.
+    pub fn new(params: &ExperienceParams, resolution: f64) -> Self {
+        let side = 4.0 * resolution;
+        let limit = params.flame_radius.powi(2) + 1e-12;
+        if side.is_nan() || side <= 0.0 || !limit.is_finite() {
+            return FlameMetric::default();
+        }
+        // The largest integer d² with d²·side² ≤ limit, evaluated as the float test it replaces.
+        let fits = |d2: i64| d2 as f64 * side * side <= limit;
+        let mut max_d2 = (limit / (side * side)).floor().clamp(0.0, 1e12) as i64;
+        while max_d2 > 0 && !fits(max_d2) {
+            max_d2 -= 1;
+        }
+        while fits(max_d2 + 1) {
+            max_d2 += 1;
+        }
+        let mut reach = (max_d2 as f64).sqrt() as i64;
+        while reach * reach > max_d2 {
+            reach -= 1;
+        }
+        while (reach + 1) * (reach + 1) <= max_d2 {
+            reach += 1;
+        }
+        FlameMetric {
+            max_d2,
+            reach: reach as i32,
+        }
+    }
+
+    /// True when octoboxes at keys `a` and `b` are close enough to match.
+    #[inline(always)]
+    pub fn close(&self, a: BlockKey, b: BlockKey) -> bool {
+        let d = |i: usize| a[i] as i64 - b[i] as i64;
+        d(0) * d(0) + d(1) * d(1) + d(2) * d(2) <= self.max_d2
+    }
+}
+
+/// One listing of an entry in a cell: the entry's number and its octobox's key.
+#[derive(Debug, Clone, Copy)]
+struct Listing {
+    key: BlockKey,
+    entry: u32,
+}
+
+/// One cell of one mask: the entries whose reach overlaps it (none: an empty slot).
+#[derive(Debug, Clone, Default)]
+struct Slot {
+    mask: u64,
+    cell: BlockKey,
+    listings: Vec<Listing>,
+}
+
+/// The index over a database's octoboxes (numbered by the database).
+///
+/// Its cells live in one open-addressing table (linear probing, at most ¾ full) keyed by mask and
+/// cell, so a query octobox costs one probe and one list. Queries are pipelined: the table slot
+/// of the query [`AHEAD`] places further on is prefetched while the next one's list is fetched,
+/// so the cache misses of a cold index (the usual case: one retrieval per plan) overlap.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct FlameIndex {
+    metric: FlameMetric,
+    /// log2 of the cell side, in octoboxes.
+    shift: u32,
+    /// The table; its length is zero or a power of two.
+    slots: Vec<Slot>,
+    /// Occupied slots.
+    occupied: usize,
+}
+
+/// How many queries ahead each pipeline stage of [`FlameIndex::search`] runs.
+const AHEAD: usize = 8;
+
+/// Asks the CPU to start loading the cache line at `p` (a hint: never faults).
+#[inline(always)]
+fn prefetch<T>(p: *const T) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: a prefetch is a hint and does not access memory; SSE is baseline on x86_64.
+    unsafe {
+        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(p.cast())
+    };
+}
+
+impl FlameIndex {
+    /// An empty index matching under `metric`.
+    pub fn new(metric: FlameMetric) -> Self {
+        let side = (2 * metric.reach as u32).max(1);
+        FlameIndex {
+            metric,
+            shift: side.next_power_of_two().trailing_zeros(),
+            ..Default::default()
+        }
+    }
+
+    /// The cell holding lattice key `key`.
+    #[inline(always)]
+    fn cell(&self, key: BlockKey) -> BlockKey {
+        key.map(|v| v >> self.shift)
+    }
+
+    /// The first slot to probe for (`mask`, `cell`); the table must not be empty.
+    #[inline(always)]
+    fn home(&self, mask: u64, cell: BlockKey) -> usize {
+        let c =
+            (cell[0] as u32 as u64) << 42 ^ (cell[1] as u32 as u64) << 21 ^ cell[2] as u32 as u64;
+        let h = (mask ^ c.wrapping_mul(0x9E37_79B9_7F4A_7C15)).wrapping_mul(0xD6E8_FEB8_6659_FD93);
+        (h >> (64 - self.slots.len().trailing_zeros())) as usize
+    }
+
+    /// The slot holding (`mask`, `cell`), or the empty slot where it would go.
+    #[inline(always)]
+    fn probe(&self, mask: u64, cell: BlockKey) -> usize {
+        let wrap = self.slots.len() - 1;
+        let mut i = self.home(mask, cell);
+        loop {
+            let s = &self.slots[i];
+            if s.listings.is_empty() || (s.mask == mask && s.cell == cell) {
+                return i;
+            }
+            i = (i + 1) & wrap;
+        }
+    }
+
+    /// Indexes entry `entry`, whose key is `octobox`.
+    pub fn add(&mut self, entry: u32, octobox: &OctoboxPrimitive) {
+        let reach = self.metric.reach;
+        let lo = self.cell(octobox.key.map(|v| v.saturating_sub(reach)));
+        let hi = self.cell(octobox.key.map(|v| v.saturating_add(reach)));
+        let listing = Listing {
+            key: octobox.key,
+            entry,
+        };
+        for x in lo[0]..=hi[0] {
+            for y in lo[1]..=hi[1] {
+                for z in lo[2]..=hi[2] {
+                    self.list(octobox.mask, [x, y, z], listing);
+                }
+            }
+        }
+    }
+
+    /// Appends `listing` to the list of (`mask`, `cell`), growing the table when ¾ full.
+    fn list(&mut self, mask: u64, cell: BlockKey, listing: Listing) {
+        if 4 * (self.occupied + 1) > 3 * self.slots.len() {
+            let old = std::mem::take(&mut self.slots);
+            self.slots = vec![Slot::default(); (2 * old.len()).max(64)];
+            for s in old.into_iter().filter(|s| !s.listings.is_empty()) {
+                let i = self.probe(s.mask, s.cell);
+                self.slots[i] = s;
+            }
+        }
+        let i = self.probe(mask, cell);
+        let slot = &mut self.slots[i];
+        if slot.listings.is_empty() {
+            *slot = Slot {
+                mask,
+                cell,
+                listings: Vec::new(),
+            };
+            self.occupied += 1;
+        }
+        slot.listings.push(listing);
+    }
+
+    /// Calls `hit(q, e)` for each query octobox `q` (its index in `queries`) and each entry `e`
+    /// matching it, queries in order and entries in listing (entry) order per query.
+    pub fn search(&self, queries: &[OctoboxPrimitive], mut hit: impl FnMut(usize, u32)) {
+        if self.slots.is_empty() {
+            return;
+        }
+        let key = |q: usize| (queries[q].mask, self.cell(queries[q].key));
+        // Three stages, AHEAD queries apart: prefetch the home slot; probe it and prefetch the
+        // list; test the list.
+        let mut lists: [&[Listing]; 2 * AHEAD] = [&[]; 2 * AHEAD];
+        for i in 0..queries.len() + 2 * AHEAD {
+            if i < queries.len() {
+                let (mask, cell) = key(i);
+                prefetch(&self.slots[self.home(mask, cell)]);
+            }
+            if let Some(q) = i.checked_sub(AHEAD).filter(|&q| q < queries.len()) {
+                let (mask, cell) = key(q);
+                let list = &self.slots[self.probe(mask, cell)].listings;
+                prefetch(list.as_ptr());
+                lists[q % (2 * AHEAD)] = list;
+            }
+            if let Some(q) = i.checked_sub(2 * AHEAD) {
+                let query = queries[q].key;
+                for l in lists[q % (2 * AHEAD)] {
+                    if self.metric.close(l.key, query) {
+                        hit(q, l.entry);
+                    }
+                }
+            }
+        }
+    }
+}
