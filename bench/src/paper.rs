@@ -86,6 +86,12 @@ pub struct Args {
     /// Override λ (default 0.5, the paper's).
     #[arg(long)]
     lambda: Option<f64>,
+    /// Override SPARK's retrieval radius `d_radius` (default 0.2, the authors' effective one).
+    #[arg(long)]
+    d_radius: Option<f64>,
+    /// Override FLAME's match radius in metres (default 0.2, the authors').
+    #[arg(long)]
+    flame_radius: Option<f64>,
 }
 
 /// What the methods did at one training size N: (method name as in `RESULT` lines, outcome).
@@ -317,6 +323,8 @@ fn run_dataset(
     let params = ExperienceParams {
         sigma: args.sigma.unwrap_or(defaults.sigma),
         lambda: args.lambda.unwrap_or(defaults.lambda),
+        d_radius: args.d_radius.unwrap_or(defaults.d_radius),
+        flame_radius: args.flame_radius.unwrap_or(defaults.flame_radius),
         ..defaults
     };
     let (mut pick, mut place) = (Learner::new(&params), Learner::new(&params));
