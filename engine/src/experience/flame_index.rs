@@ -8,7 +8,7 @@
 //! holds each candidate's key, so testing it reads no entry.
 
 use super::primitive::OctoboxPrimitive;
-use super::ExperienceParams;
+use super::{prefetch, ExperienceParams};
 use crate::world::map::BlockKey;
 
 /// The exact match test on lattice keys, shared by the index and the linear-scan oracle.
@@ -93,16 +93,6 @@ pub(crate) struct FlameIndex {
 
 /// How many queries ahead each pipeline stage of [`FlameIndex::search`] runs.
 const AHEAD: usize = 8;
-
-/// Asks the CPU to start loading the cache line at `p` (a hint: never faults).
-#[inline(always)]
-fn prefetch<T>(p: *const T) {
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: a prefetch is a hint and does not access memory; SSE is baseline on x86_64.
-    unsafe {
-        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(p.cast())
-    };
-}
 
 impl FlameIndex {
     /// An empty index matching under `metric`.

@@ -8,7 +8,7 @@
 
 use super::primitive::{raw_distance, BoxPrimitive, RawBox, SparkPair};
 use super::vptree::VpTree;
-use super::ExperienceParams;
+use super::{prefetch, ExperienceParams};
 use rustc_hash::FxHashMap;
 
 /// The index over a database's entries (numbered by the database).
@@ -124,7 +124,12 @@ impl SparkIndex {
             } else {
                 (qb, qa)
             };
-            for &b in &near[s as usize] {
+            let near_s = &near[s as usize];
+            for (k, &b) in near_s.iter().enumerate() {
+                // The lists are scattered on the heap: start loading one a few boxes ahead.
+                if let Some(&ahead) = near_s.get(k + 4) {
+                    prefetch(self.box_entries[ahead as usize].as_ptr());
+                }
                 let (d_sb, b_near_t) = (d(s, b), is_near(t, b));
                 for &[e, o] in &self.box_entries[b as usize] {
                     // The smaller of the two pairings' sums (the same sums as
