@@ -77,9 +77,11 @@ struct Slot {
 /// The index over a database's octoboxes (numbered by the database).
 ///
 /// Its cells live in one open-addressing table (linear probing, at most ¾ full) keyed by mask and
-/// cell, so a query octobox costs one probe and one list. Queries are pipelined: the table slot
-/// of the query [`AHEAD`] places further on is prefetched while the next one's list is fetched,
-/// so the cache misses of a cold index (the usual case: one retrieval per plan) overlap.
+/// cell, so a query octobox costs one probe and one list. The index is cold in the usual case
+/// (one retrieval per plan), so two things keep cache misses down: a bit filter of 16 bits per
+/// slot (small enough to stay cached) turns away most query octoboxes whose cell holds nothing
+/// without touching the table; and queries are pipelined, the table slot of the query [`AHEAD`]
+/// places further on being prefetched while the next one's list is fetched.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct FlameIndex {
     metric: FlameMetric,
@@ -89,6 +91,9 @@ pub(crate) struct FlameIndex {
     slots: Vec<Slot>,
     /// Occupied slots.
     occupied: usize,
+    /// Bit filter over the occupied slots' keys (16 bits per slot): a clear bit proves a key
+    /// absent.
+    filter: Vec<u64>,
 }
 
 /// How many queries ahead each pipeline stage of [`FlameIndex::search`] runs.
@@ -111,20 +116,40 @@ impl FlameIndex {
         key.map(|v| v >> self.shift)
     }
 
-    /// The first slot to probe for (`mask`, `cell`); the table must not be empty.
+    /// The hash of (`mask`, `cell`).
     #[inline(always)]
-    fn home(&self, mask: u64, cell: BlockKey) -> usize {
+    fn hash(mask: u64, cell: BlockKey) -> u64 {
         let c =
             (cell[0] as u32 as u64) << 42 ^ (cell[1] as u32 as u64) << 21 ^ cell[2] as u32 as u64;
-        let h = (mask ^ c.wrapping_mul(0x9E37_79B9_7F4A_7C15)).wrapping_mul(0xD6E8_FEB8_6659_FD93);
+        (mask ^ c.wrapping_mul(0x9E37_79B9_7F4A_7C15)).wrapping_mul(0xD6E8_FEB8_6659_FD93)
+    }
+
+    /// The first slot to probe for hash `h`; the table must not be empty.
+    #[inline(always)]
+    fn home(&self, h: u64) -> usize {
         (h >> (64 - self.slots.len().trailing_zeros())) as usize
     }
 
-    /// The slot holding (`mask`, `cell`), or the empty slot where it would go.
+    /// The filter bit of hash `h`: (word, bit); the table must not be empty.
     #[inline(always)]
-    fn probe(&self, mask: u64, cell: BlockKey) -> usize {
+    fn filter_bit(&self, h: u64) -> (usize, u32) {
+        let bits = 64 * self.filter.len();
+        let f = (h ^ h >> 29).wrapping_mul(0x94D0_49BB_1331_11EB) >> (64 - bits.trailing_zeros());
+        (f as usize / 64, f as u32 % 64)
+    }
+
+    /// True when the filter lets hash `h` through (its key may be present).
+    #[inline(always)]
+    fn may_hold(&self, h: u64) -> bool {
+        let (word, bit) = self.filter_bit(h);
+        self.filter[word] >> bit & 1 != 0
+    }
+
+    /// The slot holding (`mask`, `cell`) of hash `h`, or the empty slot where it would go.
+    #[inline(always)]
+    fn probe(&self, mask: u64, cell: BlockKey, h: u64) -> usize {
         let wrap = self.slots.len() - 1;
-        let mut i = self.home(mask, cell);
+        let mut i = self.home(h);
         loop {
             let s = &self.slots[i];
             if s.listings.is_empty() || (s.mask == mask && s.cell == cell) {
@@ -157,22 +182,37 @@ impl FlameIndex {
         if 4 * (self.occupied + 1) > 3 * self.slots.len() {
             let old = std::mem::take(&mut self.slots);
             self.slots = vec![Slot::default(); (2 * old.len()).max(64)];
+            self.filter = vec![0; self.slots.len() / 4];
+            self.occupied = 0;
             for s in old.into_iter().filter(|s| !s.listings.is_empty()) {
-                let i = self.probe(s.mask, s.cell);
-                self.slots[i] = s;
+                let h = Self::hash(s.mask, s.cell);
+                let i = self.probe(s.mask, s.cell, h);
+                self.occupy(i, h, s);
             }
         }
-        let i = self.probe(mask, cell);
-        let slot = &mut self.slots[i];
-        if slot.listings.is_empty() {
-            *slot = Slot {
-                mask,
-                cell,
-                listings: Vec::new(),
-            };
-            self.occupied += 1;
+        let h = Self::hash(mask, cell);
+        let i = self.probe(mask, cell, h);
+        if self.slots[i].listings.is_empty() {
+            let listings = Vec::new();
+            self.occupy(
+                i,
+                h,
+                Slot {
+                    mask,
+                    cell,
+                    listings,
+                },
+            );
         }
-        slot.listings.push(listing);
+        self.slots[i].listings.push(listing);
+    }
+
+    /// Puts `slot` (of hash `h`) in the empty slot `i`.
+    fn occupy(&mut self, i: usize, h: u64, slot: Slot) {
+        let (word, bit) = self.filter_bit(h);
+        self.filter[word] |= 1 << bit;
+        self.slots[i] = slot;
+        self.occupied += 1;
     }
 
     /// Calls `hit(q, e)` for each query octobox `q` (its index in `queries`) and each entry `e`
@@ -181,24 +221,34 @@ impl FlameIndex {
         if self.slots.is_empty() {
             return;
         }
-        let key = |q: usize| (queries[q].mask, self.cell(queries[q].key));
-        // Three stages, AHEAD queries apart: prefetch the home slot; probe it and prefetch the
-        // list; test the list.
-        let mut lists: [&[Listing]; 2 * AHEAD] = [&[]; 2 * AHEAD];
+        const RING: usize = 2 * AHEAD;
+        // Three stages, AHEAD queries apart: filter, and prefetch the home slot; probe it and
+        // prefetch the list; test the list.
+        let mut hashes = [None; RING];
+        let mut lists: [&[Listing]; RING] = [&[]; RING];
         for i in 0..queries.len() + 2 * AHEAD {
-            if i < queries.len() {
-                let (mask, cell) = key(i);
-                prefetch(&self.slots[self.home(mask, cell)]);
+            if let Some(query) = queries.get(i) {
+                let h = Self::hash(query.mask, self.cell(query.key));
+                let pass = self.may_hold(h);
+                if pass {
+                    prefetch(&self.slots[self.home(h)]);
+                }
+                hashes[i % RING] = pass.then_some(h);
             }
             if let Some(q) = i.checked_sub(AHEAD).filter(|&q| q < queries.len()) {
-                let (mask, cell) = key(q);
-                let list = &self.slots[self.probe(mask, cell)].listings;
-                prefetch(list.as_ptr());
-                lists[q % (2 * AHEAD)] = list;
+                lists[q % RING] = match hashes[q % RING] {
+                    Some(h) => {
+                        let (mask, cell) = (queries[q].mask, self.cell(queries[q].key));
+                        let list = &self.slots[self.probe(mask, cell, h)].listings;
+                        prefetch(list.as_ptr());
+                        list
+                    }
+                    None => &[],
+                };
             }
             if let Some(q) = i.checked_sub(2 * AHEAD) {
                 let query = queries[q].key;
-                for l in lists[q % (2 * AHEAD)] {
+                for l in lists[q % RING] {
                     if self.metric.close(l.key, query) {
                         hit(q, l.entry);
                     }
