@@ -1,4 +1,4 @@
-//! FLAME's match index: entries by occupancy mask, then by coarse cell of the octobox lattice.
+//! FLAME's match index: entries listed by occupancy mask and coarse cell of the octobox lattice.
 //!
 //! Two octoboxes match when their masks are equal and their centres lie at most `flame_radius`
 //! apart, i.e. when their lattice keys differ by at most `max_d2` in squared lattice distance
@@ -29,13 +29,15 @@ impl FlameMetric {
         if side.is_nan() || side <= 0.0 || !limit.is_finite() {
             return FlameMetric::default();
         }
-        // The largest integer d² with d²·side² ≤ limit, evaluated as the float test it replaces.
+        // The largest integer d² with d²·side² ≤ limit, evaluated as the float test it replaces
+        // (capped: a radius a million octoboxes long matches everything a map can hold anyway).
+        const CAP: i64 = 1_000_000_000_000;
         let fits = |d2: i64| d2 as f64 * side * side <= limit;
-        let mut max_d2 = (limit / (side * side)).floor().clamp(0.0, 1e12) as i64;
+        let mut max_d2 = (limit / (side * side)).floor().clamp(0.0, CAP as f64) as i64;
         while max_d2 > 0 && !fits(max_d2) {
             max_d2 -= 1;
         }
-        while fits(max_d2 + 1) {
+        while max_d2 < CAP && fits(max_d2 + 1) {
             max_d2 += 1;
         }
         let mut reach = (max_d2 as f64).sqrt() as i64;
@@ -254,6 +256,61 @@ impl FlameIndex {
                     }
                 }
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn metric(flame_radius: f64, resolution: f64) -> FlameMetric {
+        let params = ExperienceParams {
+            flame_radius,
+            ..Default::default()
+        };
+        FlameMetric::new(&params, resolution)
+    }
+
+    #[test]
+    fn the_metric_is_the_largest_lattice_distance_within_the_radius() {
+        // 0.2 m over 0.08 m octoboxes: 2.5 octoboxes, so d² ≤ 6 and at most 2 along one axis.
+        let m = metric(0.2, 0.02);
+        assert_eq!((m.max_d2, m.reach), (6, 2));
+        assert!(m.close([0, 0, 0], [2, 1, 1]) && !m.close([0, 0, 0], [2, 2, 0]));
+        // Exactly on the radius still matches (0.16 m = 2 octoboxes).
+        assert_eq!(
+            (metric(0.16, 0.02).max_d2, metric(0.16, 0.02).reach),
+            (4, 2)
+        );
+        assert_eq!(metric(0.05, 0.02).reach, 0);
+    }
+
+    #[test]
+    fn degenerate_parameters_give_a_bounded_metric() {
+        for (radius, resolution) in [
+            (1e9, 0.02),
+            (f64::INFINITY, 0.02),
+            (f64::NAN, 0.02),
+            (0.2, 0.0),
+            (0.2, -1.0),
+            (0.2, f64::NAN),
+        ] {
+            let m = metric(radius, resolution);
+            assert!(
+                m.max_d2 <= 1_000_000_000_000 && m.reach <= 1_000_000,
+                "{m:?}"
+            );
+            // An index over it still works.
+            let mut index = FlameIndex::new(m);
+            let octobox = OctoboxPrimitive {
+                key: [1, -2, 3],
+                mask: 7,
+            };
+            index.add(0, &octobox);
+            let mut hits = Vec::new();
+            index.search(&[octobox], |q, e| hits.push((q, e)));
+            assert_eq!(hits, [(0, 0)], "{radius} {resolution}");
         }
     }
 }
