@@ -12,7 +12,7 @@
 //! test set and method: `RESULT experience set=<folder> method=<uniform|spark|flame> n=<n>
 //! solved=<k> mean_ms=<f> median_ms=<f> retrieval_us=<f>`.
 
-use crate::learning::{plan_set, prepare, train_one, EvalOptions, Method};
+use crate::learning::{plan_sets, prepare, train_one, EvalOptions, Method};
 use ember_engine::experience::{ExperienceParams, FlameDb, SparkDb};
 use ember_engine::planning::PlannerParams;
 use ember_engine::problems::ProblemSet;
@@ -123,8 +123,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for dir in &args.test {
         let set = ProblemSet::load(dir, &robot)?;
         let cases = prepare(&robot, &set.problems)?;
-        for method in Method::ALL {
-            let o = plan_set(&cases, method, &spark, &flame, &options);
+        let runs = Method::ALL.map(|m| (m, &spark, &flame));
+        let outcomes = plan_sets(&cases, &runs, &options);
+        for (method, o) in Method::ALL.into_iter().zip(outcomes) {
             println!(
                 "{:<22} {:<8} {:>5} {:>6} {:>10.3} {:>10.3} {:>13.1} {:>9.1} {:>9.1}",
                 set.name,

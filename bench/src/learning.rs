@@ -111,7 +111,7 @@ pub struct TestCase<'a> {
     pub map: OccupancyMap,
 }
 
-/// Prepares test problems for [`plan_set`].
+/// Prepares test problems for [`plan_sets`].
 pub fn prepare<'a>(robot: &'a Robot, problems: &'a [Problem]) -> anyhow::Result<Vec<TestCase<'a>>> {
     problems
         .iter()
@@ -207,23 +207,50 @@ fn retrieve<'a>(
     }
 }
 
-/// Plans every case with `method`, using the databases for SPARK and FLAME.
-pub fn plan_set(
-    cases: &[TestCase],
-    method: Method,
-    spark: &SparkDb,
-    flame: &FlameDb,
-    options: &EvalOptions,
-) -> Outcome {
-    let params = spark.params();
-    let (mut times, mut retrieval, mut entries, mut samplers) =
-        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
-    let mut solved = 0;
+/// One method to evaluate: the method and the databases it retrieves from (SPARK, FLAME).
+pub type Run<'d> = (Method, &'d SparkDb, &'d FlameDb);
+
+/// Plans every case with each of `runs`, interleaved: each case is planned by every run in turn
+/// before the next case, so a slow spell of a shared machine slows all of them alike and their
+/// ratios stay fair. One outcome per run, in order.
+pub fn plan_sets(cases: &[TestCase], runs: &[Run], options: &EvalOptions) -> Vec<Outcome> {
+    let mut samples = vec![Samples::default(); runs.len()];
     for case in cases {
+        for (&(method, spark, flame), samples) in runs.iter().zip(&mut samples) {
+            samples.plan(case, method, spark, flame, options);
+        }
+    }
+    samples
+        .into_iter()
+        .map(|s| s.outcome(cases.len()))
+        .collect()
+}
+
+/// What one method's plans measured so far.
+#[derive(Debug, Clone, Default)]
+struct Samples {
+    times: Vec<f64>,
+    retrieval: Vec<f64>,
+    entries: Vec<f64>,
+    samplers: Vec<f64>,
+    solved: usize,
+}
+
+impl Samples {
+    /// Plans `case` with `method` and records the time (retrieval included).
+    fn plan(
+        &mut self,
+        case: &TestCase,
+        method: Method,
+        spark: &SparkDb,
+        flame: &FlameDb,
+        options: &EvalOptions,
+    ) {
+        let params = spark.params();
         let t = Instant::now();
         let r = retrieve(method, case, params, spark, flame);
-        entries.push(r.entries as f64);
-        samplers.push(r.samplers.len() as f64);
+        self.entries.push(r.entries as f64);
+        self.samplers.push(r.samplers.len() as f64);
         let mut sampler: Box<dyn Sampler + '_> = match method {
             Method::Uniform => Box::new(UniformSampler),
             _ => Box::new(GlobalSampler::new(r, params.sigma, params.lambda)),
@@ -243,22 +270,26 @@ pub fn plan_set(
         };
         match planning::plan(&case.robot, &case.env, &req, sampler.as_mut()) {
             Ok(_) => {
-                solved += 1;
-                times.push(t.elapsed().as_secs_f64() * 1e3);
+                self.solved += 1;
+                self.times.push(t.elapsed().as_secs_f64() * 1e3);
             }
-            Err(_) => times.push((options.time_limit + retrieval_s) * 1e3),
+            Err(_) => self.times.push((options.time_limit + retrieval_s) * 1e3),
         }
-        retrieval.push(retrieval_s * 1e6);
+        self.retrieval.push(retrieval_s * 1e6);
     }
-    let (median_ms, mean_ms, _) = summary(&mut times);
-    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
-    Outcome {
-        n: cases.len(),
-        solved,
-        mean_ms,
-        median_ms,
-        retrieval_us: mean(&retrieval),
-        entries: mean(&entries),
-        samplers: mean(&samplers),
+
+    /// The outcome over the `n` cases planned.
+    fn outcome(mut self, n: usize) -> Outcome {
+        let (median_ms, mean_ms, _) = summary(&mut self.times);
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+        Outcome {
+            n,
+            solved: self.solved,
+            mean_ms,
+            median_ms,
+            retrieval_us: mean(&self.retrieval),
+            entries: mean(&self.entries),
+            samplers: mean(&self.samplers),
+        }
     }
 }

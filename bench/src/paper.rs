@@ -25,7 +25,7 @@
 //!
 //! `--quick`: N ∈ {10, 50, 100}, 25 test problems, 5 s limit — a few minutes in all.
 
-use crate::learning::{plan_set, prepare, train_one, EvalOptions, Method, Outcome, TestCase};
+use crate::learning::{plan_sets, prepare, train_one, EvalOptions, Method, Outcome, Run, TestCase};
 use crate::plot::{self, Chart, Series};
 use crate::stats::summary;
 use ember_engine::experience::primitive::{octoboxes, spark_pairs};
@@ -95,14 +95,29 @@ pub struct Args {
 }
 
 /// What the methods did at one training size N: (method name as in `RESULT` lines, outcome).
-/// Uniform sampling is planned at every N too, right beside the learned methods, so that each
-/// ratio compares runs made under the same machine load.
+/// Uniform sampling is planned at every N too, interleaved with the learned methods problem by
+/// problem ([`plan_sets`]), so that each ratio compares runs made under the same machine load.
 struct Row {
     n: usize,
     outcomes: Vec<(&'static str, Outcome)>,
 }
 
 impl Row {
+    /// Plans `cases` with each named run, interleaved.
+    fn planned(
+        n: usize,
+        cases: &[TestCase],
+        runs: &[(&'static str, Run)],
+        options: &EvalOptions,
+    ) -> Row {
+        let plans: Vec<Run> = runs.iter().map(|&(_, run)| run).collect();
+        let outcomes = plan_sets(cases, &plans, options);
+        Row {
+            n,
+            outcomes: runs.iter().map(|&(name, _)| name).zip(outcomes).collect(),
+        }
+    }
+
     fn get(&self, method: &str) -> &Outcome {
         &self
             .outcomes
@@ -334,15 +349,12 @@ fn run_dataset(
         pick.train_to(robot, &train.problems, n, args.interpolate)?;
         let train_s = t.elapsed().as_secs_f64();
         let (spark, flame) = (&pick.spark, &pick.flame);
-        let eval = |m, s: &SparkDb, f: &FlameDb| plan_set(&cases, m, s, f, options);
-        let row = Row {
-            n,
-            outcomes: vec![
-                ("uniform", eval(Method::Uniform, spark, flame)),
-                ("spark", eval(Method::Spark, spark, flame)),
-                ("flame", eval(Method::Flame, spark, flame)),
-            ],
-        };
+        let runs = [
+            ("uniform", (Method::Uniform, spark, flame)),
+            ("spark", (Method::Spark, spark, flame)),
+            ("flame", (Method::Flame, spark, flame)),
+        ];
+        let row = Row::planned(n, &cases, &runs, options);
         eprintln!(
             "  N={n:<4} (+{train_s:.1} s training; SPARK {} entries, FLAME {}): {}",
             spark.len(),
@@ -355,28 +367,23 @@ fn run_dataset(
             continue;
         }
         place.train_to(robot, &place_train, n, args.interpolate)?;
-        let eval = |m, s: &SparkDb, f: &FlameDb| plan_set(&place_cases, m, s, f, options);
-        let row = Row {
-            n,
-            outcomes: vec![
-                ("uniform", eval(Method::Uniform, spark, flame)),
-                ("spark", eval(Method::Spark, &place.spark, &place.flame)),
-                ("flame", eval(Method::Flame, &place.spark, &place.flame)),
-                ("spark_tx", eval(Method::Spark, spark, flame)),
-                ("flame_tx", eval(Method::Flame, spark, flame)),
-            ],
-        };
+        let runs = [
+            ("uniform", (Method::Uniform, spark, flame)),
+            ("spark", (Method::Spark, &place.spark, &place.flame)),
+            ("flame", (Method::Flame, &place.spark, &place.flame)),
+            ("spark_tx", (Method::Spark, spark, flame)),
+            ("flame_tx", (Method::Flame, spark, flame)),
+        ];
+        let row = Row::planned(n, &place_cases, &runs, options);
         eprintln!("  place N={n:<4}: {}", row.means());
         transfer.push(row);
     }
-    let eval = |m| plan_set(&cases, m, &pick.spark, &pick.flame, options);
-    let oracle = Row {
-        n: 0,
-        outcomes: vec![
-            ("uniform", eval(Method::Uniform)),
-            ("oracle", eval(Method::Oracle)),
-        ],
-    };
+    let (spark, flame) = (&pick.spark, &pick.flame);
+    let runs = [
+        ("uniform", (Method::Uniform, spark, flame)),
+        ("oracle", (Method::Oracle, spark, flame)),
+    ];
+    let oracle = Row::planned(0, &cases, &runs, options);
     eprintln!("  oracle: {}", oracle.means());
     Ok(DatasetRun {
         name: dataset.to_string(),
