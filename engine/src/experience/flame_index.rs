@@ -279,10 +279,8 @@ mod tests {
         assert_eq!((m.max_d2, m.reach), (6, 2));
         assert!(m.close([0, 0, 0], [2, 1, 1]) && !m.close([0, 0, 0], [2, 2, 0]));
         // Exactly on the radius still matches (0.16 m = 2 octoboxes).
-        assert_eq!(
-            (metric(0.16, 0.02).max_d2, metric(0.16, 0.02).reach),
-            (4, 2)
-        );
+        let on_radius = metric(0.16, 0.02);
+        assert_eq!((on_radius.max_d2, on_radius.reach), (4, 2));
         assert_eq!(metric(0.05, 0.02).reach, 0);
     }
 
