@@ -84,7 +84,9 @@ pub fn train_one(
     let Some(path) = &problem.path else {
         return Ok(());
     };
-    let robot = problem.scene.robot(robot)?;
+    let robot = problem
+        .scene
+        .robot_with(robot, &problem.request.start_joints)?;
     let map = map_of(&problem.scene)?;
     learn(
         &robot,
@@ -118,7 +120,7 @@ pub fn prepare<'a>(robot: &'a Robot, problems: &'a [Problem]) -> anyhow::Result<
         .map(|p| {
             Ok(TestCase {
                 problem: p,
-                robot: p.scene.robot(robot)?,
+                robot: p.scene.robot_with(robot, &p.request.start_joints)?,
                 env: p.scene.environment()?,
                 map: map_of(&p.scene)?,
             })

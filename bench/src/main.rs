@@ -7,7 +7,8 @@
 //! - `ipc`: cloud hand-off and plan round-trip overhead through a real daemon;
 //! - `monitor`: plan latency with monitoring over Zenoh on against off;
 //! - `retrieval`: SPARK and FLAME retrieval time against database size (against linear scans);
-//! - `paper`: the paper's experiments (training-size sweep, retrieval scaling), tables and plots.
+//! - `paper`: the paper's experiments (training-size sweep, retrieval scaling), tables and plots;
+//! - `validity --problems DIR...`: start/goal verdicts against an exact FCL mesh checker.
 
 mod collision;
 mod daemon;
@@ -19,8 +20,10 @@ mod monitor;
 mod paper;
 mod plan;
 mod plot;
+mod python;
 mod retrieval;
 mod stats;
+mod validity;
 
 use clap::{Parser, Subcommand};
 
@@ -49,6 +52,8 @@ enum Bench {
     Retrieval(retrieval::Args),
     /// The paper's experiments: training-size sweep on the shelf datasets, tables and plots.
     Paper(paper::Args),
+    /// Start/goal verdicts against an exact mesh checker on FCL (MoveIt's), same problems.
+    Validity(validity::Args),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -61,5 +66,6 @@ fn main() -> anyhow::Result<()> {
         Bench::Monitor(a) => monitor::run(a),
         Bench::Retrieval(a) => retrieval::run(a),
         Bench::Paper(a) => paper::run(a),
+        Bench::Validity(a) => validity::run(a),
     }
 }

@@ -18,7 +18,7 @@ use nalgebra::Point3;
 use rand::SeedableRng;
 use std::collections::HashMap;
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::Command;
 use std::time::Instant;
 
@@ -39,37 +39,6 @@ pub struct Args {
     /// Skip the OctoMap side.
     #[arg(long)]
     no_peer: bool,
-}
-
-fn venv_python(root: &Path) -> anyhow::Result<PathBuf> {
-    let venv = root.join("target/octomap-venv");
-    let python = venv.join("bin/python");
-    if !python.exists() {
-        let ok = Command::new("python3")
-            .args(["-m", "venv"])
-            .arg(&venv)
-            .status()?
-            .success();
-        anyhow::ensure!(
-            ok,
-            "python3 -m venv failed; install python3-venv, or run with --no-peer"
-        );
-    }
-    let has = Command::new(&python)
-        .args(["-c", "import octomap, numpy"])
-        .status()?
-        .success();
-    if !has {
-        let ok = Command::new(&python)
-            .args(["-m", "pip", "install", "-q", "octomap-python", "numpy"])
-            .status()?
-            .success();
-        anyhow::ensure!(
-            ok,
-            "pip install octomap-python failed; run with --no-peer for our side only"
-        );
-    }
-    Ok(python)
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -121,11 +90,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return Ok(());
     }
 
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
-    let python = match venv_python(&root) {
+    let python = match crate::python::venv(
+        "octomap-venv",
+        &["octomap-python", "numpy"],
+        "import octomap, numpy",
+    ) {
         Ok(p) => p,
         Err(e) => {
-            println!("OctoMap peer unavailable: {e}");
+            println!("OctoMap peer unavailable ({e}); run with --no-peer for our side only");
             println!(
                 "RESULT map res={} ours_ms={ours_med:.3} octomap_ms=nan speedup=nan agreement=nan",
                 args.res
@@ -153,7 +125,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     drop(out);
     let leaves_path = dir.join("leaves.txt");
     let mut cmd = Command::new(&python);
-    cmd.arg(root.join("bench/octomap_peer.py"))
+    cmd.arg(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("octomap_peer.py"))
         .arg(&frames_path)
         .arg(args.res.to_string())
         .arg(args.max_range.to_string())

@@ -1,15 +1,19 @@
 //! `plan --problems DIR...`: the uniform planner over MoveIt-style problem folders.
 //!
-//! Flags: `--robot` (default: the folder's `config.yaml`, else fetch), `--time-limit S` per
-//! problem (default 10), `--seed N`, `--no-simplify`, `--range R`. For each folder prints success and
-//! planning-time statistics (planning = IK + search; simplification reported apart) and ends
-//! with `RESULT plan set=<folder> n=<problems> solved=<count> median_ms=<f> mean_ms=<f>
-//! p95_ms=<f>`; a failure counts as the time limit in the mean, as in the paper.
+//! Flags: `--robot` (default: the folder's `config.yaml`, else fetch) with `--srdf`, `--group`,
+//! `--package-path`, `--sphere-protrusion`; `--time-limit S` per problem (default 10),
+//! `--seed N`, `--no-simplify`, `--range R`. For each folder prints success, refusals and
+//! planning-time statistics (planning = IK + search; simplification and the exact validation
+//! reported apart) and ends with `RESULT plan set=<folder> n=<problems> solved=<count>
+//! median_ms=<f> mean_ms=<f> p95_ms=<f> start_refused=<k> goal_refused=<k>
+//! simplify_ms=<median> validate_ms=<median>`; a failure counts as the time limit in the mean,
+//! as in the paper.
 
 use crate::stats::summary;
+use ember_engine::planning::PlanError;
 use ember_engine::planning::{self, PlanRequest, PlannerParams, UniformSampler};
 use ember_engine::problems::ProblemSet;
-use ember_engine::robot::Robot;
+use ember_engine::robot::RobotArgs;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
@@ -18,9 +22,9 @@ pub struct Args {
     /// Problem folders (sceneNNNN.yaml + requestNNNN.yaml each).
     #[arg(long, num_args = 1.., required = true)]
     problems: Vec<PathBuf>,
-    /// Robot (built-in name or robot file); default from the folder's config.yaml, else fetch.
-    #[arg(long)]
-    robot: Option<String>,
+    /// The robot; default from the folder's config.yaml, else fetch.
+    #[command(flatten)]
+    robot: RobotArgs,
     /// Time limit per problem, seconds.
     #[arg(long, default_value_t = 10.0)]
     time_limit: f64,
@@ -38,22 +42,34 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let mut results = Vec::new();
     println!(
-        "{:<22} {:>5} {:>6} {:>10} {:>10} {:>10} {:>12}",
-        "set", "n", "solved", "median_ms", "mean_ms", "p95_ms", "simplify_ms"
+        "{:<24} {:>4} {:>6} {:>6} {:>6} {:>10} {:>10} {:>10} {:>11} {:>11}",
+        "set",
+        "n",
+        "solved",
+        "start!",
+        "goal!",
+        "median_ms",
+        "mean_ms",
+        "p95_ms",
+        "simplify_ms",
+        "validate_ms"
     );
+    let mut loaded: Option<(String, ember_engine::robot::Robot)> = None;
     for dir in &args.problems {
-        let robot_name = args
-            .robot
-            .clone()
-            .or_else(|| ProblemSet::robot_of(dir))
-            .unwrap_or_else(|| "fetch".into());
-        let robot = Robot::from_spec(&robot_name)?;
+        let default = ProblemSet::robot_of(dir).unwrap_or_else(|| "fetch".into());
+        let spec = args.robot.spec(&default);
+        let robot = match loaded.take() {
+            Some((name, r)) if name == spec.robot => r,
+            _ => spec.load()?,
+        };
         let set = ProblemSet::load(dir, &robot)?;
         let mut times = Vec::new();
         let mut simplify = Vec::new();
-        let mut solved = 0;
+        let mut validate = Vec::new();
+        let (mut solved, mut start_refused, mut goal_refused) = (0, 0, 0);
         for p in &set.problems {
             let env = p.scene.environment()?;
+            let robot = p.scene.robot_with(&robot, &p.request.start_joints)?;
             let req = PlanRequest {
                 start: p.request.start.clone(),
                 goal: p.request.goal.clone(),
@@ -70,23 +86,38 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 Ok(res) => {
                     let total = t.elapsed().as_secs_f64();
                     solved += 1;
-                    times.push((total - res.stats.simplify_s) * 1e3);
+                    times.push((total - res.stats.simplify_s - res.stats.validate_s) * 1e3);
                     simplify.push(res.stats.simplify_s * 1e3);
+                    validate.push(res.stats.validate_s * 1e3);
                 }
-                Err(_) => times.push(args.time_limit * 1e3),
+                Err(e) => {
+                    match e {
+                        PlanError::StartInCollision(_) => start_refused += 1,
+                        PlanError::GoalInCollision(_) => goal_refused += 1,
+                        _ => {}
+                    }
+                    times.push(args.time_limit * 1e3)
+                }
             }
         }
         let n = set.problems.len();
         let (median, mean, p95) = summary(&mut times);
         let (simp, _, _) = summary(&mut simplify);
+        let (val, _, _) = summary(&mut validate);
         println!(
-            "{:<22} {:>5} {:>6} {:>10.3} {:>10.3} {:>10.3} {:>12.3}",
-            set.name, n, solved, median, mean, p95, simp
+            "{:<24} {:>4} {:>6} {:>6} {:>6} {:>10.3} {:>10.3} {:>10.3} {:>11.3} {:>11.3}",
+            set.name, n, solved, start_refused, goal_refused, median, mean, p95, simp, val
         );
-        results.push((set.name, n, solved, median, mean, p95));
+        results.push(format!(
+            "RESULT plan set={} n={n} solved={solved} median_ms={median:.3} mean_ms={mean:.3} \
+             p95_ms={p95:.3} start_refused={start_refused} goal_refused={goal_refused} \
+             simplify_ms={simp:.3} validate_ms={val:.3}",
+            set.name
+        ));
+        loaded = Some((spec.robot.clone(), robot));
     }
-    for (name, n, solved, median, mean, p95) in results {
-        println!("RESULT plan set={name} n={n} solved={solved} median_ms={median:.3} mean_ms={mean:.3} p95_ms={p95:.3}");
+    for line in results {
+        println!("{line}");
     }
     Ok(())
 }

@@ -1,6 +1,7 @@
 //! Command-line definitions. One subcommand per file under `command/`.
 
 use clap::{Args, Parser, Subcommand};
+use ember_engine::robot::RobotArgs;
 use std::path::PathBuf;
 
 /// Ember: a sensing-to-plan service for robot manipulators.
@@ -27,6 +28,60 @@ pub enum Command {
     Train(TrainArgs),
     /// Watch daemons over Zenoh: a live view, or --once --json for scripts.
     Monitor(MonitorArgs),
+    /// Inspect a robot description: links, group, spheres and their fit, self-collision pairs.
+    #[command(subcommand)]
+    Robot(RobotCommand),
+}
+
+#[derive(Debug, Subcommand)]
+pub enum RobotCommand {
+    /// Load a robot and report what Ember made of it: links, joints, group, spheres per link
+    /// with measured protrusion and coverage, self-collision pairs; optionally a picture of the
+    /// spheres over the geometry and an SRDF of the computed disabled pairs.
+    Check(RobotCheckArgs),
+    /// Print the tightest single primitive (box, capsule or cylinder) around each collision
+    /// mesh as URDF collision elements, with its protrusion.
+    Primitives(RobotPrimitivesArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct RobotCheckArgs {
+    /// The robot (same as --robot).
+    pub robot_positional: Option<String>,
+    #[command(flatten)]
+    pub robot: RobotArgs,
+    /// Also measure the robot's spheres and primitives against this description (a URDF with
+    /// meshes), link by link: how far they stick out of it and how much of it they cover.
+    #[arg(long)]
+    pub reference: Option<PathBuf>,
+    /// Folder for package:// URIs of the reference (repeat).
+    #[arg(long = "reference-package-path")]
+    pub reference_package_path: Vec<PathBuf>,
+    /// Write a picture of the spheres over the geometry (.svg or .png).
+    #[arg(long)]
+    pub picture: Option<PathBuf>,
+    /// Configuration of the picture: a named state [default: the first one, else the middle of
+    /// the limits].
+    #[arg(long)]
+    pub state: Option<String>,
+    /// Compute the pairs to skip the way MoveIt's setup assistant does and write an SRDF with
+    /// them (and the group and named states) to this file.
+    #[arg(long)]
+    pub write_srdf: Option<PathBuf>,
+    /// Random configurations sampled for --write-srdf.
+    #[arg(long, default_value_t = 10_000)]
+    pub samples: usize,
+    /// Surface points per link drawn to measure coverage.
+    #[arg(long, default_value_t = 4000)]
+    pub coverage_samples: usize,
+}
+
+#[derive(Debug, Args)]
+pub struct RobotPrimitivesArgs {
+    /// The robot (same as --robot).
+    pub robot_positional: Option<String>,
+    #[command(flatten)]
+    pub robot: RobotArgs,
 }
 
 #[derive(Debug, Args)]
@@ -37,9 +92,8 @@ pub struct PlanArgs {
     /// MoveIt MotionPlanRequest YAML.
     #[arg(long)]
     pub request: PathBuf,
-    /// Built-in robot name (fetch, panda) or a robot file (.toml).
-    #[arg(long, default_value = "fetch")]
-    pub robot: String,
+    #[command(flatten)]
+    pub robot: RobotArgs,
     /// Seed of the planner.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -76,9 +130,8 @@ pub struct ProblemsArgs {
     /// table_pick).
     #[arg(long)]
     pub place: bool,
-    /// Built-in robot name or robot file.
-    #[arg(long, default_value = "fetch")]
-    pub robot: String,
+    #[command(flatten)]
+    pub robot: RobotArgs,
 }
 
 #[derive(Debug, Args)]
@@ -86,9 +139,8 @@ pub struct DemoArgs {
     /// Pick episodes to run (each in a new variation of the shelf scene).
     #[arg(long, default_value_t = 30)]
     pub episodes: usize,
-    /// Built-in robot name or robot file.
-    #[arg(long, default_value = "fetch")]
-    pub robot: String,
+    #[command(flatten)]
+    pub robot: RobotArgs,
     /// Seed of scene variation, sensor noise and planning.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -180,9 +232,9 @@ pub struct ReplayArgs {
     /// Replay what is intact of a damaged file instead of refusing it.
     #[arg(long)]
     pub allow_truncated: bool,
-    /// Robot the joint states belong to (built-in name or robot file).
-    #[arg(long, default_value = "fetch")]
-    pub robot: String,
+    /// The robot the joint states belong to.
+    #[command(flatten)]
+    pub robot: RobotArgs,
     /// Role of a foreign (ROS 2) bag topic: TOPIC=cloud|cloud_pose|joints|object:ID:SHAPE:D1,D2,D3 (repeat).
     #[arg(long = "topic-map")]
     pub topic_map: Vec<String>,

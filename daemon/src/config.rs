@@ -11,7 +11,16 @@ pub const DEFAULT_TOML: &str = include_str!("../../config/emberd.toml");
 #[serde(deny_unknown_fields)]
 pub struct Config {
     pub instance: String,
+    /// Built-in name, robot file (.toml) or URDF (.urdf).
     pub robot: String,
+    /// SRDF of a URDF robot; empty for none.
+    pub srdf: PathBuf,
+    /// Planning group of the SRDF; empty for the default.
+    pub group: String,
+    /// Folders searched first for `package://` mesh URIs.
+    pub package_path: Vec<PathBuf>,
+    /// Sphere protrusion, metres; 0 keeps the description's.
+    pub sphere_protrusion: f64,
     pub map: MapConfig,
     pub planner: PlannerConfig,
     pub experience: ExperienceConfig,
@@ -90,6 +99,18 @@ fn merge(base: &mut toml::Table, over: toml::Table) {
 }
 
 impl Config {
+    /// The robot the `robot`, `srdf`, `group`, `package_path` and `sphere_protrusion` keys name.
+    pub fn robot_spec(&self) -> ember_engine::robot::RobotSpec {
+        ember_engine::robot::RobotSpec {
+            robot: self.robot.clone(),
+            srdf: (!self.srdf.as_os_str().is_empty()).then(|| self.srdf.clone()),
+            group: (!self.group.is_empty()).then(|| self.group.clone()),
+            package_paths: self.package_path.clone(),
+            protrusion: (self.sphere_protrusion != 0.0).then_some(self.sphere_protrusion),
+            sphere_cache: Default::default(),
+        }
+    }
+
     /// The defaults, overridden by `file` when given.
     pub fn load(file: Option<&Path>) -> anyhow::Result<Config> {
         let mut table: toml::Table = DEFAULT_TOML.parse().expect("embedded defaults parse");

@@ -5,6 +5,7 @@ mod monitor;
 mod plan;
 mod problems;
 mod replay;
+mod robot;
 mod run;
 mod train;
 
@@ -21,13 +22,16 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Replay(a) => replay::run(a),
         Command::Train(a) => train::run(a),
         Command::Monitor(a) => monitor::run(a),
+        Command::Robot(c) => robot::run(c),
     }
 }
 
 /// Loads a robot by built-in name or robot-file path, with a sentence naming the input.
-pub fn load_robot(spec: &str) -> anyhow::Result<ember_engine::robot::Robot> {
-    ember_engine::robot::Robot::from_spec(spec)
-        .map_err(|e| anyhow::anyhow!("cannot load robot '{spec}': {e}"))
+pub fn load_robot(
+    spec: &ember_engine::robot::RobotSpec,
+) -> anyhow::Result<ember_engine::robot::Robot> {
+    spec.load()
+        .map_err(|e| anyhow::anyhow!("cannot load robot '{}': {e}", spec.robot))
 }
 
 /// The robot's planning-group positions picked by name from a joint state (`None` when a group

@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 pub fn run(args: PlanArgs) -> anyhow::Result<ExitCode> {
-    let robot = super::load_robot(&args.robot)?;
+    let robot = super::load_robot(&args.robot.spec("fetch"))?;
     let scene = Scene::load(&args.scene)?;
     let text = std::fs::read_to_string(&args.request)
         .map_err(|e| anyhow::anyhow!("cannot read {}: {e}", args.request.display()))?;
@@ -15,9 +15,10 @@ pub fn run(args: PlanArgs) -> anyhow::Result<ExitCode> {
     let env = scene
         .environment()
         .map_err(|e| anyhow::anyhow!("{}: {e}", args.scene.display()))?;
-    // Objects the scene attaches (held in the gripper) become part of the robot.
+    // Joints outside the group take the start state's values; objects the scene attaches (held
+    // in the gripper) become part of the robot.
     let robot = scene
-        .robot(&robot)
+        .robot_with(&robot, &request.start_joints)
         .map_err(|e| anyhow::anyhow!("{}: {e}", args.scene.display()))?;
     let time_limit = args
         .time_limit

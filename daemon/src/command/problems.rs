@@ -6,7 +6,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use std::process::ExitCode;
 
 pub fn run(args: ProblemsArgs) -> anyhow::Result<ExitCode> {
-    let robot = super::load_robot(&args.robot)?;
+    let robot = super::load_robot(&args.robot.spec("fetch"))?;
     let names = if args.dataset.is_empty() {
         vec![
             "shelf_zero".to_string(),

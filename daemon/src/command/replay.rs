@@ -41,7 +41,7 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
             args.instance
         )
     })?;
-    let robot = super::load_robot(&args.robot)?;
+    let robot = super::load_robot(&args.robot.spec("fetch"))?;
     let topics = TopicMap::parse(&args.topic_map)?;
     let base = taken(&client)?;
     let mut sent = 0u64;

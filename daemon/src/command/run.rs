@@ -80,7 +80,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     if !args.monitor_listen.is_empty() {
         config.monitor.listen = args.monitor_listen;
     }
-    let robot = Arc::new(super::load_robot(&config.robot)?);
+    let robot = Arc::new(super::load_robot(&config.robot_spec())?);
     set_log_level(LogLevel::Error);
     let node = NodeBuilder::new()
         .create::<ipc::Service>()

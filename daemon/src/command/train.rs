@@ -17,7 +17,7 @@ use std::process::ExitCode;
 
 pub fn run(args: TrainArgs) -> anyhow::Result<ExitCode> {
     let config = Config::load(args.config.as_deref())?;
-    let robot = super::load_robot(&config.robot)?;
+    let robot = super::load_robot(&config.robot_spec())?;
     let spark_path = args.db.join("spark.emberdb");
     let flame_path = args.db.join("flame.emberdb");
     let mut spark = if spark_path.exists() {

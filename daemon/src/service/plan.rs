@@ -58,6 +58,7 @@ fn status_of(e: &PlanError) -> Status {
         PlanError::UnknownLink(_) => Status::UnknownLink,
         PlanError::UnreachablePose { .. } => Status::UnreachablePose,
         PlanError::Timeout { .. } => Status::Timeout,
+        PlanError::InvalidPath(_) => Status::Internal,
     }
 }
 

@@ -111,10 +111,7 @@ impl<'a> SphereChecker<'a> {
         let (moving, fixed): (Vec<usize>, Vec<usize>) = (0..n)
             .filter(|&l| robot.spheres().bounds[l].is_some())
             .partition(|&l| robot.link_moves(l));
-        let (moving_pairs, fixed_pairs): (Vec<_>, Vec<_>) = robot
-            .self_collision_pairs()
-            .iter()
-            .partition(|&&(a, b)| robot.link_moves(a) || robot.link_moves(b));
+        let (moving_pairs, fixed_pairs) = robot.partition_pairs();
         let q: Vec<f64> = robot
             .variables()
             .iter()
@@ -230,25 +227,10 @@ impl<'a> SphereChecker<'a> {
     /// order), so collisions in the middle are found early.
     pub fn motion_valid(&mut self, a: &[f64], b: &[f64]) -> bool {
         self.stats.motions += 1;
-        let n = (self.robot.distance(a, b) / self.resolution).ceil() as usize;
-        if n < 2 {
-            return true;
-        }
-        let mut step = 1usize << (usize::BITS - 1 - (n - 1).leading_zeros());
+        let robot = self.robot;
+        let resolution = self.resolution;
         let mut q = std::mem::take(&mut self.scratch);
-        let mut ok = true;
-        'levels: while step >= 1 {
-            let mut k = step;
-            while k < n {
-                self.robot.interpolate(a, b, k as f64 / n as f64, &mut q);
-                if !self.is_valid(&q) {
-                    ok = false;
-                    break 'levels;
-                }
-                k += 2 * step;
-            }
-            step /= 2;
-        }
+        let ok = bisect_motion(robot, resolution, a, b, &mut q, |q| self.is_valid(q));
         self.scratch = q;
         ok
     }
@@ -394,6 +376,47 @@ impl<'a> SphereChecker<'a> {
         }
         None
     }
+}
+
+impl<'a> super::ConfigCheck<'a> for SphereChecker<'a> {
+    fn robot(&self) -> &'a Robot {
+        self.robot
+    }
+
+    fn is_valid(&mut self, q: &[f64]) -> bool {
+        SphereChecker::is_valid(self, q)
+    }
+}
+
+/// Checks the states strictly between `a` and `b` at `resolution` with `valid`, coarse to
+/// fine (bisection order, so collisions in the middle are found early); `scratch` holds one
+/// configuration. The ends are not checked.
+#[inline]
+pub fn bisect_motion(
+    robot: &Robot,
+    resolution: f64,
+    a: &[f64],
+    b: &[f64],
+    scratch: &mut [f64],
+    mut valid: impl FnMut(&[f64]) -> bool,
+) -> bool {
+    let n = (robot.distance(a, b) / resolution).ceil() as usize;
+    if n < 2 {
+        return true;
+    }
+    let mut step = 1usize << (usize::BITS - 1 - (n - 1).leading_zeros());
+    while step >= 1 {
+        let mut k = step;
+        while k < n {
+            robot.interpolate(a, b, k as f64 / n as f64, scratch);
+            if !valid(scratch) {
+                return false;
+            }
+            k += 2 * step;
+        }
+        step /= 2;
+    }
+    true
 }
 
 /// Stamp of positions that never change (links that do not move).

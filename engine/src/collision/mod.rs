@@ -4,14 +4,30 @@
 //! - [`distance`]: point-to-primitive signed distances, one file per pair;
 //! - [`checker`]: the fast path the planner uses (robot spheres against the environment, per-link
 //!   bounding spheres as broad phase, self-collision over configured pairs, edge checks);
-//! - [`parry`]: the exact path (GJK distances between the robot's link primitives and an object),
-//!   as SPARK's criticality test needs. All parry3d conversions live there.
+//! - [`exact`]: the exact checker (the robot's own geometry, meshes as convex hulls, with
+//!   parry3d) for start/goal validity, path validation and contacts named precisely;
+//! - [`parry`]: parry3d conversions and exact distances (SPARK's criticality test). All parry3d
+//!   conversions live there;
+//! - [`convex`]: convex hulls of mesh geometry.
 
 pub mod checker;
+pub mod convex;
 pub mod distance;
+pub mod exact;
 pub mod parry;
 pub mod ray;
 pub mod shape;
 
 pub use checker::SphereChecker;
+
+use crate::robot::Robot;
+
+/// Anything that decides whether a configuration is free: the sphere checker, the exact
+/// checker, the planner's combination of both.
+pub trait ConfigCheck<'a> {
+    /// The robot checked.
+    fn robot(&self) -> &'a Robot;
+    /// True when `q` (the robot's DOF, validated) is collision free.
+    fn is_valid(&mut self, q: &[f64]) -> bool;
+}
 pub use shape::Shape;

@@ -1,25 +1,81 @@
-//! The exact path: minimum distances between the robot's link primitives and objects with
-//! parry3d (GJK on the primitives themselves, not the sphere model). SPARK's criticality test
-//! and FLAME's "robot touches the octobox" test use it.
+//! parry3d conversions and queries on the exact geometry: minimum distances between the
+//! robot's link geometry (primitives, mesh hulls) and objects (GJK, not the sphere model), as
+//! SPARK's criticality test and FLAME's "robot touches the octobox" test need, and the
+//! intersection tests the exact checker ([`super::exact`]) runs.
 //!
 //! All parry3d conversions live here (parry3d 0.31 works in f32 glam types; cylinders run
 //! along its local Y axis, ours along Z).
 
 use super::Shape;
-use crate::robot::Robot;
+use crate::robot::{Geometry, Robot};
 use crate::world::Object;
 use crate::Pose;
-use nalgebra::{Point3, UnitQuaternion, Vector3};
+use nalgebra::{Point3, Translation3, UnitQuaternion, Vector3};
 use parry3d::math::{Pose as PPose, Rotation as PRot, Vector as PVec};
-use parry3d::shape::{Ball, Capsule, Cuboid, Cylinder};
+use parry3d::shape::{Capsule, ConvexPolyhedron, SharedShape};
 
-fn to_parry_pose(p: &Pose) -> PPose {
+pub(crate) fn to_parry_pose(p: &Pose) -> PPose {
     let t = p.translation.vector;
     let q = p.rotation.coords; // x, y, z, w
     PPose::from_parts(
         PVec::new(t.x as f32, t.y as f32, t.z as f32),
         PRot::from_xyzw(q.x as f32, q.y as f32, q.z as f32, q.w as f32).normalize(),
     )
+}
+
+/// A parry3d shape for a primitive, and the pose of parry's frame in the primitive's frame
+/// (identity except for cylinders: parry's run along Y, ours along Z).
+pub(crate) fn shared_shape(shape: &Shape) -> (SharedShape, Pose) {
+    match *shape {
+        Shape::Sphere { radius } => (SharedShape::ball(radius as f32), Pose::identity()),
+        Shape::Box { half_extents: h } => (
+            SharedShape::cuboid(h[0] as f32, h[1] as f32, h[2] as f32),
+            Pose::identity(),
+        ),
+        Shape::Capsule {
+            radius,
+            half_length,
+        } => (
+            SharedShape::new(Capsule::new_z(half_length as f32, radius as f32)),
+            Pose::identity(),
+        ),
+        Shape::Cylinder {
+            radius,
+            half_length,
+        } => (
+            SharedShape::cylinder(half_length as f32, radius as f32),
+            Pose::from_parts(
+                Translation3::identity(),
+                UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::FRAC_PI_2),
+            ),
+        ),
+    }
+}
+
+/// A parry3d shape for link geometry (primitives as above, hulls as convex polyhedra).
+pub(crate) fn shared_geometry(g: &Geometry) -> (SharedShape, Pose) {
+    match g {
+        Geometry::Primitive(s) => shared_shape(s),
+        Geometry::Convex(hull) => {
+            let points: Vec<PVec> = hull
+                .points
+                .iter()
+                .map(|p| PVec::new(p[0] as f32, p[1] as f32, p[2] as f32))
+                .collect();
+            let shape = ConvexPolyhedron::from_convex_hull(&points)
+                .map(SharedShape::new)
+                // A hull that parry cannot rebuild (numerically flat): its bounding ball.
+                .unwrap_or_else(|| {
+                    let (lo, hi) = hull.aabb();
+                    SharedShape::cuboid(
+                        ((hi[0] - lo[0]) / 2.0) as f32,
+                        ((hi[1] - lo[1]) / 2.0) as f32,
+                        ((hi[2] - lo[2]) / 2.0) as f32,
+                    )
+                });
+            (shape, Pose::identity())
+        }
+    }
 }
 
 /// Minimum distance between two posed primitives; 0 when they touch or overlap.
@@ -33,82 +89,61 @@ fn to_parry_pose(p: &Pose) -> PPose {
 /// assert!((d - 7.0).abs() < 1e-5);
 /// ```
 pub fn shape_distance(a: &Shape, pose_a: &Pose, b: &Shape, pose_b: &Pose) -> f64 {
-    with_parry(a, pose_a, &|sa, pa| {
-        with_parry(b, pose_b, &|sb, pb| {
-            parry3d::query::distance(&pa, sa, &pb, sb)
-                .map(|d| d.distance as f64)
-                .expect("parry3d supports every pair of convex primitives")
-        })
-    })
+    let (sa, fa) = shared_shape(a);
+    let (sb, fb) = shared_shape(b);
+    posed_distance(&*sa, &(pose_a * fa), &*sb, &(pose_b * fb))
 }
 
-fn with_parry(
-    shape: &Shape,
-    pose: &Pose,
-    f: &dyn Fn(&dyn parry3d::shape::Shape, PPose) -> f64,
+/// Minimum distance between two parry shapes at world poses; 0 on contact.
+pub(crate) fn posed_distance(
+    a: &dyn parry3d::shape::Shape,
+    pose_a: &Pose,
+    b: &dyn parry3d::shape::Shape,
+    pose_b: &Pose,
 ) -> f64 {
-    match *shape {
-        Shape::Sphere { radius } => f(&Ball::new(radius as f32), to_parry_pose(pose)),
-        Shape::Box { half_extents: h } => f(
-            &Cuboid::new(PVec::new(h[0] as f32, h[1] as f32, h[2] as f32)),
-            to_parry_pose(pose),
-        ),
-        Shape::Capsule {
-            radius,
-            half_length,
-        } => f(
-            &Capsule::new_z(half_length as f32, radius as f32),
-            to_parry_pose(pose),
-        ),
-        Shape::Cylinder {
-            radius,
-            half_length,
-        } => {
-            // parry's cylinder runs along Y: rotate +90° about X so it runs along our Z.
-            let y_to_z =
-                UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::FRAC_PI_2);
-            let p = pose * y_to_z;
-            f(
-                &Cylinder::new(half_length as f32, radius as f32),
-                to_parry_pose(&p),
-            )
-        }
-    }
+    parry3d::query::distance(&to_parry_pose(pose_a), a, &to_parry_pose(pose_b), b)
+        .map(|d| d.distance as f64)
+        .expect("parry3d supports every pair of convex shapes")
 }
 
-/// Minimum distance from link `link`'s collision primitives (at `poses`, from
+/// True when two parry shapes at world poses touch or overlap.
+pub(crate) fn posed_intersect(
+    a: &dyn parry3d::shape::Shape,
+    pose_a: &Pose,
+    b: &dyn parry3d::shape::Shape,
+    pose_b: &Pose,
+) -> bool {
+    parry3d::query::intersection_test(&to_parry_pose(pose_a), a, &to_parry_pose(pose_b), b)
+        .map(|r| r.intersecting)
+        .expect("parry3d supports every pair of convex shapes")
+}
+
+/// Minimum distance from link `link`'s collision geometry (at `poses`, from
 /// [`Robot::forward_kinematics`]) to `object`; infinite for a link without geometry.
 pub fn link_object_distance(robot: &Robot, poses: &[Pose], link: usize, object: &Object) -> f64 {
-    robot.links()[link]
-        .collision
+    let (so, fo) = shared_shape(&object.shape);
+    let pose_o = object.pose * fo;
+    robot
+        .exact_model()
+        .link_parts(link)
         .iter()
-        .map(|ls| {
-            shape_distance(
-                &ls.shape,
-                &(poses[link] * ls.origin),
-                &object.shape,
-                &object.pose,
-            )
-        })
+        .map(|part| posed_distance(&*part.shape, &(poses[link] * part.origin), &*so, &pose_o))
         .fold(f64::INFINITY, f64::min)
 }
 
-/// Minimum distance between the robot (all links' primitives) and `object`; 0 on contact.
+/// Minimum distance between the robot (all links' geometry) and `object`; 0 on contact.
 ///
 /// Links whose bounding sphere is already farther than the best distance found are skipped.
 pub fn robot_object_distance(robot: &Robot, poses: &[Pose], object: &Object) -> f64 {
-    let model = robot.spheres();
     let obj_center = object.pose.translation.vector;
     let obj_radius = object.shape.bounding_radius();
     let mut best = f64::INFINITY;
     for li in 0..robot.links().len() {
-        if let Some((c, r)) = model.bounds[li] {
-            let w = poses[li] * Point3::from(c);
-            let lower = (w.coords - obj_center).norm() - r - obj_radius;
-            if lower >= best {
-                continue;
-            }
-        } else {
+        let Some((c, r)) = robot.exact_model().link_bound(li) else {
+            continue;
+        };
+        let w = poses[li] * Point3::from(c);
+        if (w.coords - obj_center).norm() - r - obj_radius >= best {
             continue;
         }
         best = best.min(link_object_distance(robot, poses, li, object));

@@ -2,7 +2,7 @@
 //! inside the joint limits, keeping only collision-free, mutually distinct solutions.
 
 use super::{PlanError, PlannerRng, PoseGoal};
-use crate::collision::SphereChecker;
+use crate::collision::ConfigCheck;
 use crate::robot::{Motion, Robot};
 use crate::Pose;
 use nalgebra::{DMatrix, DVector, Vector3};
@@ -61,8 +61,8 @@ fn error(current: &Pose, target: &Pose) -> (Vector3<f64>, Vector3<f64>) {
 
 /// Solves `goal` for up to `params.solutions` distinct collision-free configurations.
 /// The first restart begins at `seed` when given.
-pub fn solve(
-    checker: &mut SphereChecker<'_>,
+pub fn solve<'a>(
+    checker: &mut impl ConfigCheck<'a>,
     goal: &PoseGoal,
     seed: Option<&[f64]>,
     params: &IkParams,

@@ -3,27 +3,31 @@
 //! - [`sampler`]: the `Sampler` plug-in point and uniform sampling;
 //! - [`rrt_connect`]: bidirectional RRT over the planning group;
 //! - [`simplify`]: shortcutting and redundant-vertex removal;
-//! - [`ik`]: damped-least-squares inverse kinematics with restarts, collision-aware.
+//! - [`ik`]: damped-least-squares inverse kinematics with restarts, collision-aware;
+//! - [`validity`]: the sphere model with an exact fallback near terminal states.
 //!
-//! [`plan`] runs the whole pipeline: validate start and goal, solve IK for pose goals, search,
-//! simplify, re-validate.
+//! [`plan`] runs the whole pipeline: decide start and goal on the exact geometry, solve IK for
+//! pose goals, search and simplify on the sphere model, re-validate the path on the exact
+//! geometry.
 
 pub mod ik;
 pub mod rrt_connect;
 pub mod sampler;
 pub mod simplify;
+pub mod validity;
 
 pub use ik::IkParams;
 pub use sampler::{PlannerRng, Sampler, UniformSampler};
 
 use crate::collision::checker::{Contact, DEFAULT_RESOLUTION};
-use crate::collision::SphereChecker;
+use crate::collision::exact::ExactChecker;
 use crate::robot::{ConfigError, Robot};
 use crate::world::Environment;
 use crate::Pose;
 use rand::SeedableRng;
 use std::time::{Duration, Instant};
 use thiserror::Error;
+use validity::Validity;
 
 /// An end-effector pose goal.
 #[derive(Debug, Clone, PartialEq)]
@@ -64,6 +68,11 @@ pub struct PlannerParams {
     pub simplify: bool,
     /// Inverse kinematics settings for pose goals.
     pub ik: IkParams,
+    /// Dynamic-domain sampling (`None`: plain RRT-Connect).
+    pub dynamic_domain: Option<rrt_connect::DynamicDomain>,
+    /// Within this configuration-space distance of a start or goal that is free in the exact
+    /// geometry but touched by the spheres, the exact checker decides.
+    pub exact_radius: f64,
 }
 
 impl Default for PlannerParams {
@@ -76,6 +85,8 @@ impl Default for PlannerParams {
             seed: 0,
             simplify: true,
             ik: IkParams::default(),
+            exact_radius: 0.3,
+            dynamic_domain: Some(rrt_connect::DynamicDomain::default()),
         }
     }
 }
@@ -116,6 +127,10 @@ pub enum PlanError {
         /// Restarts tried.
         attempts: usize,
     },
+    /// The path failed the final validation on the exact geometry (the sphere model does not
+    /// cover the geometry it was fitted to: a bug or a corrupt sphere cache).
+    #[error("the path failed exact validation: {0}")]
+    InvalidPath(Contact),
     /// The search ran out of time or iterations.
     #[error("no path found within {iterations} iterations and {elapsed_ms:.1} ms")]
     Timeout {
@@ -136,6 +151,7 @@ impl PlanError {
             PlanError::GoalInCollision(_) => "goal_in_collision",
             PlanError::UnknownLink(_) => "unknown_link",
             PlanError::UnreachablePose { .. } => "unreachable_pose",
+            PlanError::InvalidPath(_) => "invalid_path",
             PlanError::Timeout { .. } => "timeout",
         }
     }
@@ -162,6 +178,10 @@ pub struct PlanStats {
     pub ik_s: f64,
     /// Simplification time, seconds.
     pub simplify_s: f64,
+    /// Exact validation of start, goals and the returned path, seconds.
+    pub validate_s: f64,
+    /// Configurations the exact checker decided near anchors during the search.
+    pub exact_fallbacks: u64,
     /// Path length before simplification.
     pub length_before: f64,
     /// Path length after simplification.
@@ -209,28 +229,40 @@ pub fn plan(
     sampler: &mut dyn Sampler,
 ) -> Result<PlanResult, PlanError> {
     let params = &request.params;
-    let mut checker = SphereChecker::new(robot, env).with_resolution(params.resolution);
+    let mut checker = Validity::new(robot, env, params.resolution, params.exact_radius);
     let mut rng = PlannerRng::seed_from_u64(params.seed);
+    let mut stats = PlanStats::default();
     robot
         .validate(&request.start)
         .map_err(PlanError::InvalidStart)?;
-    if let Some(c) = checker.contact(&request.start) {
+    let t = Instant::now();
+    if let Some(c) = checker.exact().contact(&request.start) {
         return Err(PlanError::StartInCollision(c));
     }
-    let mut stats = PlanStats::default();
+    if !checker.spheres().is_valid(&request.start) {
+        checker.add_anchor(&request.start);
+    }
+    stats.validate_s = t.elapsed().as_secs_f64();
     let goals = match &request.goal {
         Goal::Joints(goals) => {
+            let t = Instant::now();
             let mut free = Vec::new();
             let mut first_contact = None;
             for g in goals {
                 robot.validate(g).map_err(PlanError::InvalidGoal)?;
-                match checker.contact(g) {
-                    None => free.push(g.clone()),
+                match checker.exact().contact(g) {
+                    None => {
+                        if !checker.spheres().is_valid(g) {
+                            checker.add_anchor(g);
+                        }
+                        free.push(g.clone())
+                    }
                     Some(c) => {
                         first_contact.get_or_insert(c);
                     }
                 }
             }
+            stats.validate_s += t.elapsed().as_secs_f64();
             if free.is_empty() {
                 return Err(match first_contact {
                     Some(c) => PlanError::GoalInCollision(c),
@@ -254,7 +286,7 @@ pub fn plan(
             sols
         }
     };
-    let before = checker.stats();
+    let (before, _) = checker.stats();
     let mut path = rrt_connect::search(
         &mut checker,
         &request.start,
@@ -265,22 +297,52 @@ pub fn plan(
         &mut stats,
     )?;
     stats.length_before = path_length(robot, &path);
+    let raw = params.simplify.then(|| path.clone());
     if params.simplify {
         let t = Instant::now();
         simplify::simplify(&mut checker, &mut path, &mut rng);
         stats.simplify_s = t.elapsed().as_secs_f64();
     }
-    stats.length_after = path_length(robot, &path);
-    let after = checker.stats();
+    let (after, fallbacks) = checker.stats();
     stats.config_checks = after.configs - before.configs;
     stats.motion_checks = after.motions - before.motions;
+    stats.exact_fallbacks = fallbacks;
+    // The returned path is validated on the exact geometry; should the simplified one fail,
+    // the search's own path is the fallback.
+    let t = Instant::now();
+    let mut verdict = exact_path_contact(checker.exact(), &path, params.resolution);
+    if let (Some(_), Some(raw)) = (&verdict, raw) {
+        if exact_path_contact(checker.exact(), &raw, params.resolution).is_none() {
+            path = raw;
+            verdict = None;
+        }
+    }
+    stats.validate_s += t.elapsed().as_secs_f64();
+    if let Some(c) = verdict {
+        return Err(PlanError::InvalidPath(c));
+    }
+    stats.length_after = path_length(robot, &path);
     Ok(PlanResult { path, stats })
 }
 
-/// True when every waypoint and every edge of `path` is collision free at `resolution`.
+/// The first contact along `path` in the exact geometry, waypoints and edges at `resolution`.
+fn exact_path_contact(
+    exact: &mut ExactChecker<'_>,
+    path: &[Vec<f64>],
+    resolution: f64,
+) -> Option<Contact> {
+    if let [only] = path {
+        return exact.contact(only);
+    }
+    path.windows(2)
+        .find_map(|w| exact.motion_contact(&w[0], &w[1], resolution))
+        .map(|(_, c)| c)
+}
+
+/// True when every waypoint and every edge of `path` is within the limits and collision free
+/// in the exact geometry, edges checked at `resolution`.
 pub fn path_is_valid(robot: &Robot, env: &Environment, path: &[Vec<f64>], resolution: f64) -> bool {
-    let mut checker = SphereChecker::new(robot, env).with_resolution(resolution);
-    path.iter()
-        .all(|q| robot.validate(q).is_ok() && checker.is_valid(q))
-        && path.windows(2).all(|w| checker.motion_valid(&w[0], &w[1]))
+    let mut exact = ExactChecker::new(robot, env);
+    path.iter().all(|q| robot.validate(q).is_ok())
+        && exact_path_contact(&mut exact, path, resolution).is_none()
 }

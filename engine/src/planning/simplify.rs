@@ -1,15 +1,15 @@
 //! Path simplification: redundant-vertex removal and random shortcutting, then a full
 //! re-validation (the original path is kept if anything fails).
 
+use super::validity::Validity;
 use super::{path_length, PlannerRng};
-use crate::collision::SphereChecker;
 use rand::Rng;
 
 /// Shortcut attempts per path (OMPL's default budget is similar).
 const SHORTCUT_ATTEMPTS: usize = 60;
 
 /// Shortens `path` in place; endpoints are kept.
-pub fn simplify(checker: &mut SphereChecker<'_>, path: &mut Vec<Vec<f64>>, rng: &mut PlannerRng) {
+pub fn simplify(checker: &mut Validity<'_>, path: &mut Vec<Vec<f64>>, rng: &mut PlannerRng) {
     let robot = checker.robot();
     let original = path.clone();
     remove_redundant(checker, path);
@@ -59,7 +59,7 @@ pub fn simplify(checker: &mut SphereChecker<'_>, path: &mut Vec<Vec<f64>>, rng: 
 }
 
 /// Greedy pruning: from each kept vertex, jump to the farthest vertex it sees directly.
-fn remove_redundant(checker: &mut SphereChecker<'_>, path: &mut Vec<Vec<f64>>) {
+fn remove_redundant(checker: &mut Validity<'_>, path: &mut Vec<Vec<f64>>) {
     if path.len() < 3 {
         return;
     }

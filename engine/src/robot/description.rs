@@ -1,6 +1,9 @@
-//! The robot file and loading.
+//! What names a robot, and loading it.
 //!
-//! A robot is a URDF (kinematics and collision primitives) plus a small TOML robot file:
+//! A robot comes as one of:
+//! - a **built-in** name (`fetch`, `panda`): our own descriptions, embedded in the binary;
+//! - a **robot file** (TOML) next to a URDF: group, named states, joint values, spheres and
+//!   self-collision pairs, as our built-ins are written:
 //!
 //! ```toml
 //! urdf = "fetch.urdf"                     # relative to the robot file
@@ -13,18 +16,24 @@
 //! [named_states]
 //! stow = [0.05, 1.32, 1.40, -0.2, 1.72, 0.0, 1.66, 0.0]
 //! [spheres]
-//! max_growth = 0.03                       # how far spheres may stick out of the primitives
+//! protrusion = 0.01                       # how far spheres may stick out of the geometry
 //! [self_collision]
 //! pairs = [["base_link", "elbow_flex_link"]]
 //! ```
-//!
-//! Adding a robot is a data change: write these two files.
+//! - a **URDF** (meshes or primitives) with an optional MoveIt **SRDF** and group: the way
+//!   users bring their robot ([`RobotSpec`]).
 
+use super::mesh::PackagePaths;
+use super::spheres::cache::SphereCache;
 use super::spheres::{SphereModel, SpherizeParams};
+use super::srdf::Srdf;
+use super::urdf::{self, GroupSource, SelfCollision};
 use super::Robot;
+use crate::collision::exact::ExactModel;
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use thiserror::Error;
 
 /// Why a robot could not be loaded. Every variant names the file and the element at fault.
@@ -54,7 +63,15 @@ pub enum LoadRobotError {
         /// Parser message.
         message: String,
     },
-    /// An element of the URDF or the robot file is unusable.
+    /// The SRDF is not valid XML/SRDF.
+    #[error("{path}: invalid SRDF: {message}")]
+    Srdf {
+        /// File path.
+        path: String,
+        /// Parser message.
+        message: String,
+    },
+    /// An element of the URDF, SRDF or robot file is unusable.
     #[error("{path}: {element}: {message}")]
     Element {
         /// File path.
@@ -64,9 +81,107 @@ pub enum LoadRobotError {
         /// What is wrong with it.
         message: String,
     },
+    /// The options do not fit the kind of robot named.
+    #[error("robot {robot}: {message}")]
+    Options {
+        /// The robot as named.
+        robot: String,
+        /// What is wrong.
+        message: String,
+    },
     /// No robot of that name is built in.
-    #[error("no built-in robot named '{0}' (built in: fetch, panda)")]
+    #[error("no built-in robot named '{0}' (built in: fetch, panda; or give a .toml robot file or a .urdf)")]
     UnknownBuiltin(String),
+}
+
+/// What names a robot and how to read it: the `--robot`, `--srdf`, `--group`,
+/// `--package-path` and `--sphere-protrusion` options (and the `robot`, `srdf`, `group`,
+/// `package_path` keys of the daemon's config).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct RobotSpec {
+    /// A built-in name, a robot file (`.toml`) or a URDF (`.urdf`, `.xml`).
+    pub robot: String,
+    /// MoveIt SRDF of a URDF robot.
+    pub srdf: Option<PathBuf>,
+    /// Planning group (default: `arm_with_torso` when the SRDF has it, else its only chain).
+    pub group: Option<String>,
+    /// Folders where `package://` mesh URIs are looked up first.
+    pub package_paths: Vec<PathBuf>,
+    /// Sphere protrusion overriding the description's, metres.
+    pub protrusion: Option<f64>,
+    /// Where fitted spheres are cached.
+    pub sphere_cache: SphereCache,
+}
+
+/// The command-line options that name a robot, for any tool built on the engine (feature
+/// `clap`): flatten it into a clap command and call [`RobotArgs::spec`].
+#[cfg(feature = "clap")]
+#[derive(Debug, Clone, Default, PartialEq, clap::Args)]
+pub struct RobotArgs {
+    /// Robot: a built-in name (fetch, panda), a robot file (.toml) or a URDF (.urdf) [default: fetch].
+    #[arg(long)]
+    pub robot: Option<String>,
+    /// MoveIt SRDF of a URDF robot: groups, named states, disabled collision pairs.
+    #[arg(long)]
+    pub srdf: Option<PathBuf>,
+    /// Planning group of the SRDF [default: arm_with_torso if present, else its only chain group].
+    #[arg(long)]
+    pub group: Option<String>,
+    /// Folder searched first for package:// mesh URIs (repeat); then ROS_PACKAGE_PATH and AMENT_PREFIX_PATH.
+    #[arg(long = "package-path")]
+    pub package_path: Vec<PathBuf>,
+    /// How far fitted spheres may stick out of the robot's geometry, metres [default: the robot file's, else 0.01].
+    #[arg(long)]
+    pub sphere_protrusion: Option<f64>,
+}
+
+#[cfg(feature = "clap")]
+impl RobotArgs {
+    /// The spec these options name, `default_robot` when `--robot` is absent.
+    pub fn spec(&self, default_robot: &str) -> RobotSpec {
+        RobotSpec {
+            robot: self
+                .robot
+                .clone()
+                .unwrap_or_else(|| default_robot.to_string()),
+            srdf: self.srdf.clone(),
+            group: self.group.clone(),
+            package_paths: self.package_path.clone(),
+            protrusion: self.sphere_protrusion,
+            sphere_cache: SphereCache::Default,
+        }
+    }
+}
+
+/// What loading found, for `ember robot check` and for logs.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct LoadInfo {
+    /// The files read (URDF, SRDF or robot file).
+    pub sources: Vec<String>,
+    /// Per mesh: link, file, triangles, convex parts.
+    pub meshes: Vec<MeshInfo>,
+    /// Things MoveIt would also only warn about (unknown links in `disable_collisions`, ...).
+    pub warnings: Vec<String>,
+    /// Link pairs with geometry that are not checked against each other, and why.
+    pub skipped_pairs: Vec<(String, String, String)>,
+    /// The SRDF's end effectors (name, parent link).
+    pub end_effectors: Vec<(String, String)>,
+    /// The SRDF's virtual joint (name, type), when it has one: planning is in the root link's
+    /// frame, so a planar or floating one is treated as fixed.
+    pub virtual_joint: Option<(String, String)>,
+}
+
+/// One collision mesh as loaded.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MeshInfo {
+    /// Link it belongs to.
+    pub link: String,
+    /// The file.
+    pub path: PathBuf,
+    /// Triangles in the file.
+    pub triangles: usize,
+    /// Convex parts it became (1: its hull).
+    pub parts: usize,
 }
 
 /// The robot file, as written on disk.
@@ -105,23 +220,253 @@ const FETCH_URDF: &str = include_str!("../../../config/robots/fetch/fetch.urdf")
 const PANDA_TOML: &str = include_str!("../../../config/robots/panda/panda.toml");
 const PANDA_URDF: &str = include_str!("../../../config/robots/panda/panda.urdf");
 
+/// How a spec string is read.
+enum Kind {
+    Builtin,
+    RobotFile,
+    Urdf,
+}
+
+fn kind_of(robot: &str) -> Kind {
+    let lower = robot.to_lowercase();
+    if lower.ends_with(".urdf") || lower.ends_with(".xml") {
+        Kind::Urdf
+    } else if lower.ends_with(".toml") || robot.contains('/') {
+        Kind::RobotFile
+    } else {
+        Kind::Builtin
+    }
+}
+
+impl RobotSpec {
+    /// A spec naming `robot` with every option at its default.
+    pub fn new(robot: impl Into<String>) -> Self {
+        RobotSpec {
+            robot: robot.into(),
+            ..Default::default()
+        }
+    }
+
+    /// Loads the robot.
+    pub fn load(&self) -> Result<Robot, LoadRobotError> {
+        let options_err = |message: &str| LoadRobotError::Options {
+            robot: self.robot.clone(),
+            message: message.to_string(),
+        };
+        let packages = PackagePaths {
+            explicit: self.package_paths.clone(),
+        };
+        match kind_of(&self.robot) {
+            Kind::Urdf => self.load_urdf(&packages),
+            kind => {
+                if self.srdf.is_some() || self.group.is_some() {
+                    return Err(options_err(
+                        "--srdf and --group apply to URDF robots (a .urdf file); a robot file names its group itself",
+                    ));
+                }
+                let (toml_text, toml_name, urdf_text, urdf_path) = match kind {
+                    Kind::Builtin => {
+                        let (t, u) = match self.robot.as_str() {
+                            "fetch" => (FETCH_TOML, FETCH_URDF),
+                            "panda" => (PANDA_TOML, PANDA_URDF),
+                            other => return Err(LoadRobotError::UnknownBuiltin(other.to_string())),
+                        };
+                        let name = &self.robot;
+                        (
+                            t.to_string(),
+                            format!("<built-in>/{name}.toml"),
+                            u.to_string(),
+                            PathBuf::from(format!("<built-in>/{name}.urdf")),
+                        )
+                    }
+                    _ => {
+                        let path = Path::new(&self.robot);
+                        let text = read(path)?;
+                        let file = parse_robot_file(&text, &self.robot)?;
+                        let urdf_path = path.parent().unwrap_or(Path::new(".")).join(&file.urdf);
+                        let urdf_text = read(&urdf_path)?;
+                        (text, self.robot.clone(), urdf_text, urdf_path)
+                    }
+                };
+                let file = parse_robot_file(&toml_text, &toml_name)?;
+                let builtin = matches!(kind, Kind::Builtin);
+                self.load_robot_file(
+                    &file, &toml_name, &urdf_text, &urdf_path, builtin, &packages,
+                )
+            }
+        }
+    }
+
+    fn load_robot_file(
+        &self,
+        file: &RobotFile,
+        toml_name: &str,
+        urdf_text: &str,
+        urdf_path: &Path,
+        builtin: bool,
+        packages: &PackagePaths,
+    ) -> Result<Robot, LoadRobotError> {
+        let urdf_name = urdf_path.display().to_string();
+        let parsed = parse_urdf(urdf_text, &urdf_name)?;
+        let input = urdf::BuildInput {
+            urdf: &parsed,
+            urdf_name: &urdf_name,
+            base_dir: (!builtin).then(|| urdf_path.parent().unwrap_or(Path::new("."))),
+            packages,
+            semantics_name: toml_name,
+            group: GroupSource::Listed {
+                name: &file.group.name,
+                joints: &file.group.joints,
+                tip: &file.group.tip,
+            },
+            fixed_joints: &file.fixed_joints,
+            self_collision: SelfCollision::Check(&file.self_collision.pairs),
+        };
+        let mut info = LoadInfo {
+            sources: vec![toml_name.to_string(), urdf_name.clone()],
+            ..Default::default()
+        };
+        let built = urdf::build(&input, &mut info)?;
+        let compute_pairs = built.compute_pairs;
+        let mut robot = built.robot;
+        for (name, q) in &file.named_states {
+            robot.validate(q).map_err(|e| LoadRobotError::Element {
+                path: toml_name.to_string(),
+                element: format!("named state '{name}'"),
+                message: e.to_string(),
+            })?;
+            robot.named_states.push((name.clone(), q.clone()));
+        }
+        self.finish(robot, compute_pairs, &file.spheres, info, toml_name)
+    }
+
+    fn load_urdf(&self, packages: &PackagePaths) -> Result<Robot, LoadRobotError> {
+        let urdf_path = Path::new(&self.robot);
+        let urdf_name = self.robot.clone();
+        let parsed = parse_urdf(&read(urdf_path)?, &urdf_name)?;
+        let mut info = LoadInfo {
+            sources: vec![urdf_name.clone()],
+            ..Default::default()
+        };
+        let srdf_name = self.srdf.as_ref().map(|p| p.display().to_string());
+        let srdf = match &self.srdf {
+            Some(p) => {
+                info.sources.push(p.display().to_string());
+                Some(
+                    Srdf::parse(&read(p)?).map_err(|message| LoadRobotError::Srdf {
+                        path: p.display().to_string(),
+                        message,
+                    })?,
+                )
+            }
+            None => None,
+        };
+        let fixed = BTreeMap::new();
+        let (group, self_collision, semantics_name) = match &srdf {
+            Some(s) => {
+                let srdf_name = srdf_name.as_deref().expect("srdf named");
+                let group = match &self.group {
+                    Some(g) => s.group(g).ok_or_else(|| LoadRobotError::Element {
+                        path: srdf_name.to_string(),
+                        element: format!("group '{g}'"),
+                        message: format!(
+                            "is not defined (groups: {})",
+                            s.groups
+                                .iter()
+                                .map(|g| g.name.as_str())
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        ),
+                    })?,
+                    None => s.default_group().map_err(|message| LoadRobotError::Srdf {
+                        path: srdf_name.to_string(),
+                        message,
+                    })?,
+                };
+                (
+                    GroupSource::Srdf { srdf: s, group },
+                    SelfCollision::Disable(&s.disabled),
+                    srdf_name.to_string(),
+                )
+            }
+            None => {
+                if self.group.is_some() {
+                    return Err(LoadRobotError::Options {
+                        robot: self.robot.clone(),
+                        message: "--group needs --srdf (groups are defined in the SRDF)".into(),
+                    });
+                }
+                (
+                    GroupSource::AllMovable,
+                    SelfCollision::Compute,
+                    urdf_name.clone(),
+                )
+            }
+        };
+        let input = urdf::BuildInput {
+            urdf: &parsed,
+            urdf_name: &urdf_name,
+            base_dir: Some(urdf_path.parent().unwrap_or(Path::new("."))),
+            packages,
+            semantics_name: &semantics_name,
+            group,
+            fixed_joints: &fixed,
+            self_collision,
+        };
+        let built = urdf::build(&input, &mut info)?;
+        let mut robot = built.robot;
+        if let Some(s) = &srdf {
+            urdf::add_srdf_states(&mut robot, s, &semantics_name)?;
+        }
+        self.finish(
+            robot,
+            built.compute_pairs,
+            &SpherizeParams::default(),
+            info,
+            &semantics_name,
+        )
+    }
+
+    /// Spheres, exact geometry and (without an SRDF) computed self-collision pairs.
+    fn finish(
+        &self,
+        mut robot: Robot,
+        compute_pairs: bool,
+        spheres: &SpherizeParams,
+        mut info: LoadInfo,
+        params_name: &str,
+    ) -> Result<Robot, LoadRobotError> {
+        let mut params = spheres.clone();
+        if let Some(p) = self.protrusion {
+            params.protrusion = p;
+        }
+        params
+            .validate()
+            .map_err(|message| LoadRobotError::Element {
+                path: params_name.to_string(),
+                element: "spheres".into(),
+                message,
+            })?;
+        robot.exact = Arc::new(ExactModel::build(&robot.links));
+        if compute_pairs {
+            let skipped = super::self_collision::skipped_pairs(
+                &robot,
+                super::self_collision::DEFAULT_SAMPLES,
+                &self.sphere_cache,
+            );
+            robot.self_pairs = super::self_collision::pairs_except(&robot, &skipped);
+            info.skipped_pairs = skipped;
+        }
+        robot.spheres = SphereModel::generate(&robot.links, &params, &self.sphere_cache);
+        robot.info = Arc::new(info);
+        Ok(robot)
+    }
+}
+
 impl Robot {
     /// Loads a robot from its robot file (TOML); the URDF path inside is relative to it.
     pub fn load(robot_file: impl AsRef<Path>) -> Result<Robot, LoadRobotError> {
-        let path = robot_file.as_ref();
-        let toml_text = read(path)?;
-        let file = parse_robot_file(&toml_text, &path.display().to_string())?;
-        let urdf_path: PathBuf = path
-            .parent()
-            .unwrap_or_else(|| Path::new("."))
-            .join(&file.urdf);
-        let urdf_text = read(&urdf_path)?;
-        Self::from_parts(
-            &file,
-            &path.display().to_string(),
-            &urdf_text,
-            &urdf_path.display().to_string(),
-        )
+        RobotSpec::new(robot_file.as_ref().display().to_string()).load()
     }
 
     /// A robot shipped inside the binary: `fetch` or `panda`. Needs no files.
@@ -131,45 +476,24 @@ impl Robot {
     /// assert_eq!(fetch.dof(), 8);
     /// ```
     pub fn builtin(name: &str) -> Result<Robot, LoadRobotError> {
-        let (toml_text, urdf_text) = match name {
-            "fetch" => (FETCH_TOML, FETCH_URDF),
-            "panda" => (PANDA_TOML, PANDA_URDF),
-            other => return Err(LoadRobotError::UnknownBuiltin(other.to_string())),
-        };
-        let toml_name = format!("<built-in>/{name}.toml");
-        let file = parse_robot_file(toml_text, &toml_name)?;
-        Self::from_parts(
-            &file,
-            &toml_name,
-            urdf_text,
-            &format!("<built-in>/{name}.urdf"),
-        )
-    }
-
-    /// Loads `spec` as a built-in name when it has no path separator or extension, else as a
-    /// robot file path.
-    pub fn from_spec(spec: &str) -> Result<Robot, LoadRobotError> {
-        if spec.contains('/') || spec.ends_with(".toml") {
-            Self::load(spec)
-        } else {
-            Self::builtin(spec)
+        match name {
+            "fetch" | "panda" => RobotSpec::new(name).load(),
+            other => Err(LoadRobotError::UnknownBuiltin(other.to_string())),
         }
     }
 
-    fn from_parts(
-        file: &RobotFile,
-        toml_name: &str,
-        urdf_text: &str,
-        urdf_name: &str,
-    ) -> Result<Robot, LoadRobotError> {
-        let parsed = urdf_rs::read_from_string(urdf_text).map_err(|e| LoadRobotError::Urdf {
-            path: urdf_name.to_string(),
-            message: e.to_string(),
-        })?;
-        let mut robot = super::urdf::build(&parsed, file, toml_name, urdf_name)?;
-        robot.spheres = SphereModel::generate(&robot.links, &file.spheres);
-        Ok(robot)
+    /// Loads `spec`: a built-in name, a robot file (`.toml` or any path) or a URDF (`.urdf`),
+    /// every other option at its default.
+    pub fn from_spec(spec: &str) -> Result<Robot, LoadRobotError> {
+        RobotSpec::new(spec).load()
     }
+}
+
+fn parse_urdf(text: &str, name: &str) -> Result<urdf_rs::Robot, LoadRobotError> {
+    urdf_rs::read_from_string(text).map_err(|e| LoadRobotError::Urdf {
+        path: name.to_string(),
+        message: e.to_string(),
+    })
 }
 
 fn read(path: &Path) -> Result<String, LoadRobotError> {
@@ -190,6 +514,18 @@ fn parse_robot_file(text: &str, name: &str) -> Result<RobotFile, LoadRobotError>
 mod tests {
     use super::*;
 
+    fn from_parts(toml_text: &str, urdf_text: &str) -> Result<Robot, LoadRobotError> {
+        let file = parse_robot_file(toml_text, "x.toml")?;
+        RobotSpec::new("x.toml").load_robot_file(
+            &file,
+            "x.toml",
+            urdf_text,
+            Path::new("x.urdf"),
+            true,
+            &PackagePaths::default(),
+        )
+    }
+
     #[test]
     fn builtin_robots_load() {
         for name in ["fetch", "panda"] {
@@ -202,9 +538,7 @@ mod tests {
     #[test]
     fn unknown_group_joint_is_named() {
         let bad = FETCH_TOML.replace("\"elbow_flex_joint\"", "\"elbow_joint\"");
-        let file = parse_robot_file(&bad, "x.toml").unwrap();
-        let err = Robot::from_parts(&file, "x.toml", FETCH_URDF, "x.urdf").unwrap_err();
-        let text = err.to_string();
+        let text = from_parts(&bad, FETCH_URDF).unwrap_err().to_string();
         assert!(
             text.contains("elbow_joint") && text.contains("x.toml"),
             "{text}"
@@ -213,20 +547,18 @@ mod tests {
 
     #[test]
     fn bad_urdf_names_the_file() {
-        let file = parse_robot_file(FETCH_TOML, "x.toml").unwrap();
-        let err = Robot::from_parts(&file, "x.toml", "<robot name=", "broken.urdf").unwrap_err();
-        assert!(err.to_string().contains("broken.urdf"), "{err}");
+        let err = from_parts(FETCH_TOML, "<robot name=").unwrap_err();
+        assert!(err.to_string().contains("x.urdf"), "{err}");
     }
 
     #[test]
-    fn mesh_geometry_is_rejected_with_the_link_name() {
+    fn mesh_in_an_embedded_robot_is_refused_with_the_link_name() {
         let urdf = FETCH_URDF.replacen(
             "<box size=\"0.12 0.13 0.09\"/>",
             "<mesh filename=\"package://x/gripper.stl\"/>",
             1,
         );
-        let file = parse_robot_file(FETCH_TOML, "x.toml").unwrap();
-        let err = Robot::from_parts(&file, "x.toml", &urdf, "x.urdf").unwrap_err();
+        let err = from_parts(FETCH_TOML, &urdf).unwrap_err();
         assert!(err.to_string().contains("gripper_link"), "{err}");
     }
 
@@ -243,8 +575,17 @@ mod tests {
             "tuck = [0.1, 1.32, 1.40, -0.2, 1.72, 0.0, 1.66, 0.0]",
             "tuck = [0.1, 1.32]",
         );
-        let file = parse_robot_file(&bad, "x.toml").unwrap();
-        let err = Robot::from_parts(&file, "x.toml", FETCH_URDF, "x.urdf").unwrap_err();
+        let err = from_parts(&bad, FETCH_URDF).unwrap_err();
         assert!(err.to_string().contains("tuck"), "{err}");
+    }
+
+    #[test]
+    fn srdf_options_on_a_builtin_are_refused() {
+        let spec = RobotSpec {
+            srdf: Some("x.srdf".into()),
+            ..RobotSpec::new("fetch")
+        };
+        let err = spec.load().unwrap_err().to_string();
+        assert!(err.contains("--srdf"), "{err}");
     }
 }

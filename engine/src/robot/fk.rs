@@ -81,17 +81,31 @@ impl Robot {
 
 impl Robot {
     /// The robot's collision primitives at configuration `q` as world objects named
-    /// `robot/<link>/<i>` (for rendering the robot into simulated sensor data).
+    /// `robot/<link>/<i>` (for rendering the robot into simulated sensor data). Mesh geometry
+    /// is rendered as the link's fitted spheres.
     pub fn collision_objects(&self, q: &[f64]) -> Result<Vec<crate::world::Object>, ConfigError> {
         let poses = self.link_poses(q)?;
         let mut out = Vec::new();
         for (li, link) in self.links.iter().enumerate() {
+            let mut meshes = false;
             for (i, ls) in link.collision.iter().enumerate() {
-                out.push(crate::world::Object {
-                    name: format!("robot/{}/{i}", link.name),
-                    shape: ls.shape,
-                    pose: poses[li] * ls.origin,
-                });
+                match &ls.geometry {
+                    super::Geometry::Primitive(shape) => out.push(crate::world::Object {
+                        name: format!("robot/{}/{i}", link.name),
+                        shape: *shape,
+                        pose: poses[li] * ls.origin,
+                    }),
+                    super::Geometry::Convex(_) => meshes = true,
+                }
+            }
+            if meshes {
+                for (k, (c, r)) in self.spheres.link_spheres(li).enumerate() {
+                    out.push(crate::world::Object {
+                        name: format!("robot/{}/sphere{k}", link.name),
+                        shape: crate::collision::Shape::Sphere { radius: r },
+                        pose: poses[li] * Pose::translation(c[0], c[1], c[2]),
+                    });
+                }
             }
         }
         Ok(out)

@@ -1,25 +1,42 @@
-//! Robot models: our own [`Robot`] type built once from a URDF plus a small robot file.
+//! Robot models: our own [`Robot`] type built once from a URDF plus either a MoveIt SRDF or a
+//! small robot file.
 //!
-//! - [`description`]: the robot file (TOML: group, named states, fixed joints, self-collision
-//!   pairs) and loading, including the built-in robots;
+//! - [`description`]: what names a robot ([`RobotSpec`]: built-in, robot file, URDF + SRDF)
+//!   and loading, including the built-in robots;
+//! - [`srdf`]: MoveIt's SRDF (groups, named states, end effectors, disabled collisions);
+//! - [`mesh`]: collision meshes (URIs, STL/OBJ/DAE, checks, convex hulls);
 //! - `urdf`: URDF → [`Robot`] conversion (urdf-rs types never leave that file);
+//! - [`self_collision`]: which link pairs to check, computed the way MoveIt's setup assistant
+//!   does when no SRDF says;
 //! - [`fk`]: forward kinematics;
-//! - [`spheres`]: the sphere model generated from the collision primitives;
+//! - [`spheres`]: the sphere model fitted to the collision geometry;
 //! - [`config_space`]: joint limits, wrapping, distances and interpolation.
 
 pub mod config_space;
 pub mod description;
 pub mod fk;
+pub mod mesh;
+pub mod primitives;
+pub mod self_collision;
 pub mod spheres;
+pub mod srdf;
 mod urdf;
 
 pub use config_space::ConfigError;
-pub use description::LoadRobotError;
+#[cfg(feature = "clap")]
+pub use description::RobotArgs;
+pub use description::{LoadRobotError, RobotSpec};
 
+use crate::collision::convex::ConvexHull;
+use crate::collision::exact::ExactModel;
 use crate::collision::Shape;
 use crate::Pose;
-use nalgebra::{Unit, Vector3};
+use nalgebra::{Translation3, Unit, UnitQuaternion, Vector3};
 use spheres::SphereModel;
+use std::sync::Arc;
+
+/// Link index pairs.
+pub(crate) type LinkPairs = Vec<(usize, usize)>;
 
 /// How a link moves relative to its parent, after its joint origin.
 #[derive(Debug, Clone, PartialEq)]
@@ -43,13 +60,40 @@ pub enum Motion {
     },
 }
 
-/// One collision primitive of a link, posed in the link frame.
+/// Collision geometry of one part of a link.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Geometry {
+    /// A primitive (URDF box, cylinder, capsule, sphere).
+    Primitive(Shape),
+    /// The convex hull of a mesh, or of one part of its convex decomposition.
+    Convex(Arc<ConvexHull>),
+}
+
+/// One collision part of a link, posed in the link frame.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LinkShape {
-    /// Pose of the primitive in the link frame.
+    /// Pose of the part in the link frame.
     pub origin: Pose,
-    /// The primitive.
-    pub shape: Shape,
+    /// The geometry.
+    pub geometry: Geometry,
+}
+
+/// A movable URDF joint outside the planning group: it holds the value the request's start
+/// state gives it (MoveIt's semantics), folded into its child link's origin.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PassiveJoint {
+    /// Joint name.
+    pub name: String,
+    /// Index of the child link.
+    pub link: usize,
+    /// Joint origin before the joint's motion (parent frame).
+    pub origin: Pose,
+    /// Unit axis.
+    pub axis: Unit<Vector3<f64>>,
+    /// True for prismatic joints.
+    pub prismatic: bool,
+    /// Current value.
+    pub value: f64,
 }
 
 /// A rigid body of the robot.
@@ -63,8 +107,10 @@ pub struct Link {
     pub origin: Pose,
     /// Motion of the link about its joint frame.
     pub motion: Motion,
-    /// Collision primitives in the link frame.
+    /// Collision parts in the link frame.
     pub collision: Vec<LinkShape>,
+    /// Name of the joint that connects it to its parent (empty for the root).
+    pub joint: String,
 }
 
 /// A planning-group variable (one joint).
@@ -92,7 +138,10 @@ pub struct Robot {
     pub(crate) tip: usize,
     pub(crate) named_states: Vec<(String, Vec<f64>)>,
     pub(crate) self_pairs: Vec<(usize, usize)>,
+    pub(crate) passive: Vec<PassiveJoint>,
     pub(crate) spheres: SphereModel,
+    pub(crate) exact: Arc<ExactModel>,
+    pub(crate) info: Arc<description::LoadInfo>,
     /// Joint origins as rotation-matrix frames (for [`Robot::forward_kinematics_frames`]).
     pub(crate) origin_frames: Vec<fk::Frame>,
 }
@@ -172,6 +221,70 @@ impl Robot {
         &self.spheres
     }
 
+    /// The exact collision geometry (parry3d shapes) used for the decisions that must be exact.
+    pub fn exact_model(&self) -> &ExactModel {
+        &self.exact
+    }
+
+    /// What loading found: sources, warnings, the self-collision pairs skipped and why.
+    pub fn load_info(&self) -> &description::LoadInfo {
+        &self.info
+    }
+
+    /// Movable joints outside the planning group, with their current values.
+    pub fn passive_joints(&self) -> &[PassiveJoint] {
+        &self.passive
+    }
+
+    /// A copy whose joints outside the planning group take `values` (joint name → value, as a
+    /// MoveIt request's start state gives them). Names of group joints, fixed joints or joints
+    /// the robot lacks are ignored, as MoveIt ignores them; non-finite values are refused.
+    pub fn with_joint_values<'a>(
+        &self,
+        values: impl IntoIterator<Item = (&'a str, f64)>,
+    ) -> Result<std::borrow::Cow<'_, Robot>, ConfigError> {
+        let mut out: Option<Robot> = None;
+        for (name, value) in values {
+            let Some(k) = self.passive.iter().position(|p| p.name == name) else {
+                continue;
+            };
+            if !value.is_finite() {
+                return Err(ConfigError::NotFinite {
+                    joint: name.to_string(),
+                    index: k,
+                });
+            }
+            if self.passive[k].value == value {
+                continue;
+            }
+            let robot = out.get_or_insert_with(|| self.clone());
+            let p = &mut robot.passive[k];
+            p.value = value;
+            let origin = if p.prismatic {
+                p.origin * Translation3::from(p.axis.into_inner() * value)
+            } else {
+                p.origin * UnitQuaternion::from_axis_angle(&p.axis, value)
+            };
+            let link = p.link;
+            robot.links[link].origin = origin;
+            robot.origin_frames[link] =
+                fk::Frame::from_parts(origin.translation, origin.rotation.to_rotation_matrix());
+        }
+        Ok(match out {
+            Some(r) => std::borrow::Cow::Owned(r),
+            None => std::borrow::Cow::Borrowed(self),
+        })
+    }
+
+    /// Self-collision pairs split into those whose relative pose changes with the group
+    /// (checked per configuration) and those that never move relative to each other (checked
+    /// once).
+    pub(crate) fn partition_pairs(&self) -> (LinkPairs, LinkPairs) {
+        self.self_pairs.iter().partition(|&&(a, b)| {
+            (self.link_moves(a) || self.link_moves(b)) && !self.rigid_body(a).contains(&b)
+        })
+    }
+
     /// Links moving rigidly with `link` (itself included): up through fixed joints to the body's
     /// root, then down through fixed joints (a gripper's palm and fingers, for its wrist).
     pub fn rigid_body(&self, link: usize) -> Vec<usize> {
@@ -194,8 +307,6 @@ impl Robot {
     /// against the environment, and against every link with geometry outside `parent`'s rigid
     /// body for self-collision (the hand that holds it may touch it).
     pub fn with_attached(&self, parent: usize, name: &str, shape: Shape, origin: Pose) -> Robot {
-        /// Tighter than the robot's own spheres: held objects are small.
-        const ATTACHED_GROWTH: f64 = 0.01;
         let mut robot = self.clone();
         let index = robot.links.len();
         robot.links.push(Link {
@@ -203,12 +314,20 @@ impl Robot {
             parent: Some(parent),
             origin: Pose::identity(),
             motion: Motion::Fixed,
-            collision: vec![LinkShape { origin, shape }],
+            collision: vec![LinkShape {
+                origin,
+                geometry: Geometry::Primitive(shape),
+            }],
+            joint: String::new(),
         });
         robot.origin_frames.push(fk::Frame::identity());
-        robot
-            .spheres
-            .push_link(index, &robot.links[index], ATTACHED_GROWTH);
+        robot.spheres.push_link(
+            index,
+            &robot.links[index],
+            spheres::DEFAULT_PROTRUSION,
+            &spheres::cache::SphereCache::Off,
+        );
+        robot.exact = Arc::new(ExactModel::build(&robot.links));
         let touching = robot.rigid_body(index);
         for (i, l) in robot.links.iter().enumerate() {
             if !l.collision.is_empty() && !touching.contains(&i) {

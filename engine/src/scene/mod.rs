@@ -43,7 +43,24 @@ impl Scene {
     /// The robot as this scene has it: `robot` itself, or a copy carrying the attached objects
     /// ([`Robot::with_attached`]). An attachment to a link the robot lacks is an error naming it.
     pub fn robot<'r>(&self, robot: &'r Robot) -> Result<Cow<'r, Robot>, SceneError> {
-        let mut out = Cow::Borrowed(robot);
+        self.robot_with(robot, &[])
+    }
+
+    /// The robot as this scene and a request's start state have it: joints outside the
+    /// planning group at the values `start_joints` gives them (MoveIt's semantics, see
+    /// [`Robot::with_joint_values`]), carrying the attached objects.
+    pub fn robot_with<'r>(
+        &self,
+        robot: &'r Robot,
+        start_joints: &[(String, f64)],
+    ) -> Result<Cow<'r, Robot>, SceneError> {
+        let mut out = robot
+            .with_joint_values(start_joints.iter().map(|(n, v)| (n.as_str(), *v)))
+            .map_err(|e| SceneError::Field {
+                path: self.name.clone(),
+                field: "start_state".into(),
+                message: e.to_string(),
+            })?;
         for (i, a) in self.attached.iter().enumerate() {
             let link = robot.link_index(&a.link).ok_or_else(|| SceneError::Field {
                 path: self.name.clone(),

@@ -271,8 +271,12 @@ fn strings<'a>(node: &Node<'a>) -> Result<Vec<&'a str>, SceneError> {
     node.seq()?.iter().map(|n| n.str()).collect()
 }
 
-/// Picks the planning group's joints out of a `joint_state {name[], position[]}`.
-fn group_config(js: &Node, robot: &Robot) -> Result<Vec<f64>, SceneError> {
+/// Joint names with values.
+type JointValues = Vec<(String, f64)>;
+
+/// Picks the planning group's joints out of a `joint_state {name[], position[]}`, and returns
+/// every named joint's value too (joints outside the group take them, as in MoveIt).
+fn group_config(js: &Node, robot: &Robot) -> Result<(Vec<f64>, JointValues), SceneError> {
     let names_node = js.get("name")?;
     let names = strings(&names_node)?;
     let pos_node = js.get("position")?;
@@ -280,9 +284,15 @@ fn group_config(js: &Node, robot: &Robot) -> Result<Vec<f64>, SceneError> {
     if names.len() != pos.len() {
         return Err(pos_node.err(format!("{} names but {} positions", names.len(), pos.len())));
     }
-    robot
+    let q = robot
         .group_positions(&names, &pos)
-        .map_err(|joint| names_node.err(format!("group joint '{joint}' is missing")))
+        .map_err(|joint| names_node.err(format!("group joint '{joint}' is missing")))?;
+    let all = names
+        .iter()
+        .zip(&pos)
+        .map(|(n, v)| (n.to_string(), *v))
+        .collect();
+    Ok((q, all))
 }
 
 /// A MoveIt `MotionPlanRequest` reduced to what Ember plans with.
@@ -292,6 +302,9 @@ pub struct MotionRequest {
     pub group_name: String,
     /// Start configuration in group order.
     pub start: Vec<f64>,
+    /// Every joint the start state names, with its value: joints outside the planning group
+    /// keep these values while planning ([`Robot::with_joint_values`]).
+    pub start_joints: Vec<(String, f64)>,
     /// Goal: joint configurations (one per goal constraint) or a pose.
     pub goal: Goal,
     /// `allowed_planning_time`, seconds, when given.
@@ -316,7 +329,7 @@ pub fn request_from_yaml(
             robot.group_name()
         )));
     }
-    let start = group_config(&root.get("start_state")?.get("joint_state")?, robot)?;
+    let (start, start_joints) = group_config(&root.get("start_state")?.get("joint_state")?, robot)?;
     let goals = root.get("goal_constraints")?.seq()?;
     if goals.is_empty() {
         return Err(root.get("goal_constraints")?.err("no goal constraints"));
@@ -361,6 +374,7 @@ pub fn request_from_yaml(
     Ok(MotionRequest {
         group_name,
         start,
+        start_joints,
         goal,
         allowed_planning_time: match root.opt("allowed_planning_time") {
             Some(n) => Some(n.f64()?),

@@ -39,11 +39,32 @@ struct DemoDaemon {
 impl DemoDaemon {
     fn start(args: &DemoArgs, dir: &Path) -> anyhow::Result<DemoDaemon> {
         let config = dir.join("emberd-demo.toml");
-        let robot = match Path::new(&args.robot) {
-            p if p.exists() => std::fs::canonicalize(p)?.display().to_string(),
-            _ => args.robot.clone(),
+        // Paths become absolute: the daemon reads them from its own config file.
+        let spec = args.robot.spec("fetch");
+        let absolute = |p: &Path| -> std::io::Result<String> {
+            Ok(match p.exists() {
+                true => std::fs::canonicalize(p)?.display().to_string(),
+                false => p.display().to_string(),
+            })
         };
-        std::fs::write(&config, format!("robot = {}\n", toml::Value::String(robot)))?;
+        let mut table = toml::Table::new();
+        table.insert("robot".into(), absolute(Path::new(&spec.robot))?.into());
+        if let Some(s) = &spec.srdf {
+            table.insert("srdf".into(), absolute(s)?.into());
+        }
+        if let Some(g) = &spec.group {
+            table.insert("group".into(), g.clone().into());
+        }
+        let packages = spec
+            .package_paths
+            .iter()
+            .map(|p| absolute(p).map(toml::Value::from))
+            .collect::<std::io::Result<Vec<_>>>()?;
+        table.insert("package_path".into(), packages.into());
+        if let Some(p) = spec.protrusion {
+            table.insert("sphere_protrusion".into(), p.into());
+        }
+        std::fs::write(&config, toml::to_string(&table)?)?;
         let mut cmd = Command::new(std::env::current_exe()?);
         cmd.args(["run", "--instance", &args.instance, "--config"])
             .arg(&config)
@@ -149,7 +170,7 @@ pub fn run(args: DemoArgs) -> anyhow::Result<ExitCode> {
         "invalid instance name '{}'",
         args.instance
     );
-    let robot = super::load_robot(&args.robot)?;
+    let robot = super::load_robot(&args.robot.spec("fetch"))?;
     let spec = problems::dataset("shelf_height_rot").expect("built-in dataset");
     let start = robot
         .named_state(spec.start_state)

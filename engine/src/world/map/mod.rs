@@ -330,13 +330,31 @@ impl OccupancyMap {
 
     /// True when a ball at `c` with radius `r` overlaps an occupied voxel (as a cube).
     pub fn sphere_collides(&self, c: [f64; 3], r: f64) -> bool {
+        let half = self.params.resolution / 2.0;
+        self.any_occupied_in(
+            [c[0] - r, c[1] - r, c[2] - r],
+            [c[0] + r, c[1] + r, c[2] + r],
+            |v| {
+                let d = [0, 1, 2].map(|a| ((c[a] - v[a]).abs() - half).max(0.0));
+                d[0] * d[0] + d[1] * d[1] + d[2] * d[2] < r * r
+            },
+        )
+    }
+
+    /// Calls `f` with the centre of each occupied voxel in the 4×4×4 blocks overlapping the box
+    /// `[lo, hi]` until it returns true; returns whether it did. The coarse index skips empty
+    /// regions.
+    pub fn any_occupied_in(
+        &self,
+        lo: [f64; 3],
+        hi: [f64; 3],
+        mut f: impl FnMut([f64; 3]) -> bool,
+    ) -> bool {
         if self.coarse.is_empty() {
             return false;
         }
-        let res = self.params.resolution;
-        let lo = self.key_of([c[0] - r, c[1] - r, c[2] - r]).map(|v| v >> 2);
-        let hi = self.key_of([c[0] + r, c[1] + r, c[2] + r]).map(|v| v >> 2);
-        let half = res / 2.0;
+        let lo = self.key_of(lo).map(|v| v >> 2);
+        let hi = self.key_of(hi).map(|v| v >> 2);
         for gx in (lo[0] >> 2)..=(hi[0] >> 2) {
             for gy in (lo[1] >> 2)..=(hi[1] >> 2) {
                 for gz in (lo[2] >> 2)..=(hi[2] >> 2) {
@@ -355,10 +373,7 @@ impl OccupancyMap {
                                         by * 4 + (bit / 4 % 4) as i32,
                                         bz * 4 + (bit % 4) as i32,
                                     ];
-                                    let v = self.voxel_center(k);
-                                    let d =
-                                        [0, 1, 2].map(|a| ((c[a] - v[a]).abs() - half).max(0.0));
-                                    if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] < r * r {
+                                    if f(self.voxel_center(k)) {
                                         return true;
                                     }
                                 }

@@ -1,0 +1,320 @@
+//! The exact checker: the robot's collision geometry itself (primitives as they are, meshes as
+//! their convex hulls or decompositions) against the environment and against itself, with
+//! parry3d's GJK intersection tests. It decides what must not depend on the sphere model's
+//! conservatism: start and goal validity (naming the contact), the final validation of every
+//! returned path, and the planner's checks near terminal states that only the spheres touch.
+//!
+//! Per configuration: forward kinematics, then for each moving link part a bounding-sphere test
+//! against each object's bounding sphere before GJK; occupied map voxels are tested as cubes,
+//! only where the part's bounding sphere meets the map. Pairs of links that never move
+//! relative to each other are checked once, at construction.
+
+use super::checker::Contact;
+use super::parry::{posed_intersect, shared_geometry, shared_shape};
+use crate::robot::{Link, Robot};
+use crate::world::Environment;
+use crate::Pose;
+use nalgebra::{Point3, Vector3};
+use parry3d::shape::SharedShape;
+use std::ops::Range;
+
+/// One collision part of a link as a parry3d shape.
+#[derive(Clone)]
+pub struct ExactPart {
+    /// Pose of the parry shape in the link frame.
+    pub origin: Pose,
+    /// The shape.
+    pub shape: SharedShape,
+    /// Bounding sphere centre in the link frame.
+    pub center: [f64; 3],
+    /// Bounding sphere radius.
+    pub radius: f64,
+}
+
+impl std::fmt::Debug for ExactPart {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ExactPart")
+            .field("center", &self.center)
+            .field("radius", &self.radius)
+            .finish()
+    }
+}
+
+/// The robot's exact collision geometry, built once per robot: parts grouped by link.
+#[derive(Debug, Clone, Default)]
+pub struct ExactModel {
+    parts: Vec<ExactPart>,
+    link_parts: Vec<Range<usize>>,
+    link_bounds: Vec<Option<([f64; 3], f64)>>,
+}
+
+impl ExactModel {
+    /// Converts every link's collision geometry.
+    pub fn build(links: &[Link]) -> ExactModel {
+        let mut model = ExactModel::default();
+        for link in links {
+            let start = model.parts.len();
+            for ls in &link.collision {
+                let (shape, adjust) = shared_geometry(&ls.geometry);
+                let origin = ls.origin * adjust;
+                let aabb = shape.compute_local_aabb();
+                let (lo, hi) = (aabb.mins, aabb.maxs);
+                let mid = Vector3::new(
+                    ((lo.x + hi.x) / 2.0) as f64,
+                    ((lo.y + hi.y) / 2.0) as f64,
+                    ((lo.z + hi.z) / 2.0) as f64,
+                );
+                let half = Vector3::new(
+                    ((hi.x - lo.x) / 2.0) as f64,
+                    ((hi.y - lo.y) / 2.0) as f64,
+                    ((hi.z - lo.z) / 2.0) as f64,
+                );
+                let c = origin * Point3::from(mid);
+                model.parts.push(ExactPart {
+                    origin,
+                    shape,
+                    center: [c.x, c.y, c.z],
+                    radius: half.norm() + 1e-6,
+                });
+            }
+            let range = start..model.parts.len();
+            model.link_bounds.push(bound(&model.parts[range.clone()]));
+            model.link_parts.push(range);
+        }
+        model
+    }
+
+    /// The parts of link `link`.
+    pub fn link_parts(&self, link: usize) -> &[ExactPart] {
+        &self.parts[self.link_parts[link].clone()]
+    }
+
+    /// A sphere (link frame) containing link `link`'s geometry, if it has any.
+    pub fn link_bound(&self, link: usize) -> Option<([f64; 3], f64)> {
+        self.link_bounds[link]
+    }
+}
+
+fn bound(parts: &[ExactPart]) -> Option<([f64; 3], f64)> {
+    if parts.is_empty() {
+        return None;
+    }
+    let mut lo = Vector3::repeat(f64::INFINITY);
+    let mut hi = Vector3::repeat(f64::NEG_INFINITY);
+    for p in parts {
+        let c = Vector3::from(p.center);
+        lo = lo.inf(&(c - Vector3::repeat(p.radius)));
+        hi = hi.sup(&(c + Vector3::repeat(p.radius)));
+    }
+    let mid = (lo + hi) / 2.0;
+    let r = parts
+        .iter()
+        .map(|p| (Vector3::from(p.center) - mid).norm() + p.radius)
+        .fold(0.0, f64::max);
+    Some(([mid.x, mid.y, mid.z], r))
+}
+
+/// An environment object as a parry shape with a bounding sphere.
+struct ExactObject {
+    shape: SharedShape,
+    pose: Pose,
+    center: Vector3<f64>,
+    radius: f64,
+}
+
+/// Exact validity of configurations of one robot in one environment.
+///
+/// ```
+/// use ember_engine::{collision::exact::ExactChecker, robot::Robot, world::Environment};
+/// let fetch = Robot::builtin("fetch").unwrap();
+/// let env = Environment::new();
+/// let mut sut = ExactChecker::new(&fetch, &env);
+/// assert_eq!(sut.contact(fetch.named_state("stow").unwrap()), None);
+/// ```
+pub struct ExactChecker<'a> {
+    robot: &'a Robot,
+    env: &'a Environment,
+    poses: Vec<Pose>,
+    objects: Vec<ExactObject>,
+    moving_links: Vec<usize>,
+    moving_pairs: Vec<(usize, usize)>,
+    static_contact: Option<Contact>,
+    checks: u64,
+}
+
+impl<'a> ExactChecker<'a> {
+    /// A checker for `robot` in `env` (object shapes are converted once here).
+    pub fn new(robot: &'a Robot, env: &'a Environment) -> Self {
+        let objects = env
+            .objects()
+            .iter()
+            .map(|o| {
+                let (shape, adjust) = shared_shape(&o.shape);
+                ExactObject {
+                    shape,
+                    pose: o.pose * adjust,
+                    center: o.pose.translation.vector,
+                    radius: o.shape.bounding_radius(),
+                }
+            })
+            .collect();
+        let n = robot.links().len();
+        let (moving, fixed): (Vec<usize>, Vec<usize>) = (0..n)
+            .filter(|&l| robot.exact_model().link_bound(l).is_some())
+            .partition(|&l| robot.link_moves(l));
+        let (moving_pairs, fixed_pairs) = robot.partition_pairs();
+        let mut sut = ExactChecker {
+            robot,
+            env,
+            poses: vec![Pose::identity(); n],
+            objects,
+            moving_links: moving,
+            moving_pairs,
+            static_contact: None,
+            checks: 0,
+        };
+        let mid: Vec<f64> = robot
+            .variables()
+            .iter()
+            .map(|v| (v.lower + v.upper) / 2.0)
+            .collect();
+        robot.forward_kinematics(&mid, &mut sut.poses);
+        sut.static_contact = sut.first_contact(&fixed, &fixed_pairs);
+        sut
+    }
+
+    /// Configurations checked so far.
+    pub fn checks(&self) -> u64 {
+        self.checks
+    }
+
+    /// What `q` touches first (an object, the map, or another link), or `None` when it is
+    /// free. `q` must have the robot's DOF.
+    pub fn contact(&mut self, q: &[f64]) -> Option<Contact> {
+        self.checks += 1;
+        if let Some(c) = &self.static_contact {
+            return Some(c.clone());
+        }
+        self.robot.forward_kinematics(q, &mut self.poses);
+        let links = std::mem::take(&mut self.moving_links);
+        let pairs = std::mem::take(&mut self.moving_pairs);
+        let contact = self.first_contact(&links, &pairs);
+        self.moving_links = links;
+        self.moving_pairs = pairs;
+        contact
+    }
+
+    /// True when `q` is free in the exact geometry.
+    pub fn is_valid(&mut self, q: &[f64]) -> bool {
+        self.contact(q).is_none()
+    }
+
+    /// The first contact along the straight motion from `a` to `b` at `resolution` (ends
+    /// included), with the interpolation parameter where it occurs.
+    pub fn motion_contact(
+        &mut self,
+        a: &[f64],
+        b: &[f64],
+        resolution: f64,
+    ) -> Option<(f64, Contact)> {
+        let n = ((self.robot.distance(a, b) / resolution).ceil() as usize).max(1);
+        let mut q = vec![0.0; a.len()];
+        for k in 0..=n {
+            let t = k as f64 / n as f64;
+            self.robot.interpolate(a, b, t, &mut q);
+            if let Some(c) = self.contact(&q) {
+                return Some((t, c));
+            }
+        }
+        None
+    }
+
+    fn first_contact(&self, links: &[usize], pairs: &[(usize, usize)]) -> Option<Contact> {
+        let model = self.robot.exact_model();
+        let names = self.robot.links();
+        for &li in links {
+            for part in model.link_parts(li) {
+                let pose = self.poses[li] * part.origin;
+                let c = (self.poses[li] * Point3::from(part.center)).coords;
+                for (o, obj) in self.objects.iter().enumerate() {
+                    if (c - obj.center).norm() > part.radius + obj.radius {
+                        continue;
+                    }
+                    if posed_intersect(&*part.shape, &pose, &*obj.shape, &obj.pose) {
+                        return Some(Contact::Object {
+                            link: names[li].name.clone(),
+                            object: self.env.objects()[o].name.clone(),
+                        });
+                    }
+                }
+                if self.touches_map(part, &pose, [c.x, c.y, c.z]) {
+                    return Some(Contact::Object {
+                        link: names[li].name.clone(),
+                        object: "occupancy map".into(),
+                    });
+                }
+            }
+        }
+        for &(a, b) in pairs {
+            if links_touch(self.robot.exact_model(), &self.poses, a, b) {
+                return Some(Contact::SelfCollision {
+                    link_a: names[a].name.clone(),
+                    link_b: names[b].name.clone(),
+                });
+            }
+        }
+        None
+    }
+
+    fn touches_map(&self, part: &ExactPart, pose: &Pose, center: [f64; 3]) -> bool {
+        let Some(map) = self.env.map() else {
+            return false;
+        };
+        let r = part.radius;
+        if !map.sphere_collides(center, r) {
+            return false;
+        }
+        let half = map.resolution() / 2.0;
+        let voxel = SharedShape::cuboid(half as f32, half as f32, half as f32);
+        let aabb = part.shape.compute_aabb(&super::parry::to_parry_pose(pose));
+        let lo = [aabb.mins.x, aabb.mins.y, aabb.mins.z].map(|v| v as f64 - half);
+        let hi = [aabb.maxs.x, aabb.maxs.y, aabb.maxs.z].map(|v| v as f64 + half);
+        map.any_occupied_in(lo, hi, |v| {
+            (0..3).all(|k| v[k] >= lo[k] && v[k] <= hi[k])
+                && posed_intersect(
+                    &*part.shape,
+                    pose,
+                    &*voxel,
+                    &Pose::translation(v[0], v[1], v[2]),
+                )
+        })
+    }
+}
+
+impl<'a> super::ConfigCheck<'a> for ExactChecker<'a> {
+    fn robot(&self) -> &'a Robot {
+        self.robot
+    }
+
+    fn is_valid(&mut self, q: &[f64]) -> bool {
+        ExactChecker::is_valid(self, q)
+    }
+}
+
+/// True when links `a` and `b` (at link poses `poses`) touch in the exact geometry.
+pub fn links_touch(model: &ExactModel, poses: &[Pose], a: usize, b: usize) -> bool {
+    for pa in model.link_parts(a) {
+        let ca = poses[a] * Point3::from(pa.center);
+        let pose_a = poses[a] * pa.origin;
+        for pb in model.link_parts(b) {
+            let cb = poses[b] * Point3::from(pb.center);
+            if (ca - cb).norm() > pa.radius + pb.radius {
+                continue;
+            }
+            if posed_intersect(&*pa.shape, &pose_a, &*pb.shape, &(poses[b] * pb.origin)) {
+                return true;
+            }
+        }
+    }
+    false
+}

@@ -1,0 +1,119 @@
+//! The planner's validity checks: the sphere model everywhere, and the exact geometry near the
+//! terminal states that only the spheres touch.
+//!
+//! The sphere model covers the robot's geometry with up to a centimetre to spare, so a start
+//! or goal can be free in the real geometry yet touched by the spheres (a gripper closing
+//! around a can, an arm resting close to the body). [`plan`](super::plan) decides start and goals
+//! on the exact geometry and registers such states as *anchors*; within `exact_radius`
+//! (configuration-space distance) of an anchor, a configuration the spheres reject is asked
+//! again of the exact checker. Everywhere else the sphere verdict stands, so the inner loop
+//! stays on the fast path.
+
+use crate::collision::checker::{bisect_motion, CheckStats};
+use crate::collision::exact::ExactChecker;
+use crate::collision::{ConfigCheck, SphereChecker};
+use crate::robot::Robot;
+use crate::world::Environment;
+
+/// Sphere checks with an exact fallback near anchors.
+pub struct Validity<'a> {
+    robot: &'a Robot,
+    spheres: SphereChecker<'a>,
+    exact: ExactChecker<'a>,
+    anchors: Vec<Vec<f64>>,
+    exact_radius: f64,
+    resolution: f64,
+    scratch: Vec<f64>,
+    motions: u64,
+    fallbacks: u64,
+}
+
+impl<'a> Validity<'a> {
+    /// Checks for `robot` in `env` with edge resolution `resolution`.
+    pub fn new(robot: &'a Robot, env: &'a Environment, resolution: f64, exact_radius: f64) -> Self {
+        Validity {
+            robot,
+            spheres: SphereChecker::new(robot, env).with_resolution(resolution),
+            exact: ExactChecker::new(robot, env),
+            anchors: Vec::new(),
+            exact_radius,
+            resolution: resolution.max(1e-6),
+            scratch: vec![0.0; robot.dof()],
+            motions: 0,
+            fallbacks: 0,
+        }
+    }
+
+    /// The robot checked.
+    pub fn robot(&self) -> &'a Robot {
+        self.robot
+    }
+
+    /// The sphere checker.
+    pub fn spheres(&mut self) -> &mut SphereChecker<'a> {
+        &mut self.spheres
+    }
+
+    /// The exact checker.
+    pub fn exact(&mut self) -> &mut ExactChecker<'a> {
+        &mut self.exact
+    }
+
+    /// Registers a state free in the exact geometry but touched by the spheres.
+    pub fn add_anchor(&mut self, q: &[f64]) {
+        self.anchors.push(q.to_vec());
+    }
+
+    /// Anchors registered.
+    pub fn anchors(&self) -> usize {
+        self.anchors.len()
+    }
+
+    /// Sphere-model work so far (configurations and motions), and exact fallbacks.
+    pub fn stats(&self) -> (CheckStats, u64) {
+        let mut s = self.spheres.stats();
+        s.motions = self.motions;
+        (s, self.fallbacks)
+    }
+
+    /// True when `q` is free: the spheres say so, or `q` is near an anchor and the exact
+    /// geometry says so.
+    #[inline]
+    pub fn is_valid(&mut self, q: &[f64]) -> bool {
+        if self.spheres.is_valid(q) {
+            return true;
+        }
+        if self.anchors.is_empty() || !self.near_anchor(q) {
+            return false;
+        }
+        self.fallbacks += 1;
+        self.exact.is_valid(q)
+    }
+
+    fn near_anchor(&self, q: &[f64]) -> bool {
+        self.anchors
+            .iter()
+            .any(|a| self.robot.distance(a, q) <= self.exact_radius)
+    }
+
+    /// True when the straight motion from `a` to `b` is free at the resolution (ends assumed
+    /// valid).
+    pub fn motion_valid(&mut self, a: &[f64], b: &[f64]) -> bool {
+        self.motions += 1;
+        let (robot, resolution) = (self.robot, self.resolution);
+        let mut q = std::mem::take(&mut self.scratch);
+        let ok = bisect_motion(robot, resolution, a, b, &mut q, |q| self.is_valid(q));
+        self.scratch = q;
+        ok
+    }
+}
+
+impl<'a> ConfigCheck<'a> for Validity<'a> {
+    fn robot(&self) -> &'a Robot {
+        self.robot
+    }
+
+    fn is_valid(&mut self, q: &[f64]) -> bool {
+        Validity::is_valid(self, q)
+    }
+}

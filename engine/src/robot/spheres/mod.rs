@@ -1,0 +1,384 @@
+//! The sphere model: spheres per link, in the link frame, fitted to the link's collision
+//! geometry (primitives and mesh hulls alike), plus one bounding sphere per link and clusters of
+//! at most [`CLUSTER_SIZE`] neighbouring spheres for the checker's hierarchy.
+//!
+//! - [`fit`]: the fitter (bounded protrusion, greedy cover of the surface);
+//! - [`cache`]: fitted spheres cached by content hash, in memory and on disk.
+//!
+//! [`measure`] reports a model's protrusion and coverage against any geometry.
+
+pub mod cache;
+pub mod fit;
+
+use super::{Link, LinkShape};
+use cache::{Source, SphereCache};
+use fit::{Part, Sphere};
+use nalgebra::Vector3;
+use rand::{Rng, SeedableRng};
+use serde::Deserialize;
+
+/// Parameters of sphere fitting (the `[spheres]` table of the robot file).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpherizeParams {
+    /// How far a sphere may stick out of the link's geometry, metres.
+    #[serde(alias = "max_growth")]
+    pub protrusion: f64,
+    /// Per-link overrides of `protrusion` (coarser spheres for large static body parts).
+    #[serde(default)]
+    pub links: std::collections::BTreeMap<String, f64>,
+}
+
+/// Default protrusion: 1 cm.
+pub const DEFAULT_PROTRUSION: f64 = 0.01;
+
+impl Default for SpherizeParams {
+    fn default() -> Self {
+        Self {
+            protrusion: DEFAULT_PROTRUSION,
+            links: Default::default(),
+        }
+    }
+}
+
+impl SpherizeParams {
+    /// The protrusion used for `link`.
+    pub fn protrusion_of(&self, link: &str) -> f64 {
+        self.links.get(link).copied().unwrap_or(self.protrusion)
+    }
+
+    /// Checks every protrusion is within 2 mm – 10 cm; the message names the offending key.
+    pub fn validate(&self) -> Result<(), String> {
+        let ok = |v: f64| v.is_finite() && (0.002..=0.1).contains(&v);
+        if !ok(self.protrusion) {
+            return Err(format!(
+                "sphere protrusion must be between 0.002 and 0.1 m, got {}",
+                self.protrusion
+            ));
+        }
+        for (link, v) in &self.links {
+            if !ok(*v) {
+                return Err(format!(
+                    "sphere protrusion of link '{link}' must be between 0.002 and 0.1 m, got {v}"
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// How the model was built: links fitted now, read from disk, or reused from memory.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct BuildInfo {
+    /// Links fitted by this build.
+    pub fitted: usize,
+    /// Links read from the disk cache.
+    pub from_disk: usize,
+    /// Links reused from this process.
+    pub from_memory: usize,
+    /// Wall time of the build, seconds.
+    pub seconds: f64,
+}
+
+/// Largest number of spheres in one cluster (one SIMD register of f32 lanes).
+pub const CLUSTER_SIZE: usize = 8;
+
+/// A group of at most [`CLUSTER_SIZE`] neighbouring spheres of one link, with a bounding sphere:
+/// the middle level of the checker's hierarchy (link → cluster → sphere).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Cluster {
+    /// Range of the cluster's spheres in the model's arrays.
+    pub range: std::ops::Range<usize>,
+    /// Centre of the bounding sphere, link frame.
+    pub center: [f64; 3],
+    /// Radius of the bounding sphere.
+    pub radius: f64,
+}
+
+/// Flat arrays of spheres grouped by link: centre in the link frame and radius.
+#[derive(Debug, Clone, Default)]
+pub struct SphereModel {
+    /// Owning link of each sphere.
+    pub link: Vec<u32>,
+    /// Centre in the owning link's frame, metres.
+    pub center: Vec<[f64; 3]>,
+    /// Radius, metres.
+    pub radius: Vec<f64>,
+    /// Per link (indexed like `Robot::links`): the range of its spheres.
+    pub ranges: Vec<std::ops::Range<usize>>,
+    /// Per link: a sphere (centre in the link frame, radius) containing all its spheres.
+    pub bounds: Vec<Option<([f64; 3], f64)>>,
+    /// Clusters of neighbouring spheres, grouped by link.
+    pub clusters: Vec<Cluster>,
+    /// Per link: the range of its clusters.
+    pub link_clusters: Vec<std::ops::Range<usize>>,
+    /// How the model was built.
+    pub build: BuildInfo,
+}
+
+impl SphereModel {
+    /// Number of spheres.
+    pub fn len(&self) -> usize {
+        self.radius.len()
+    }
+
+    /// True when no link has collision geometry.
+    pub fn is_empty(&self) -> bool {
+        self.radius.is_empty()
+    }
+
+    /// Fits spheres to every link's collision geometry (through `cache`), grouped into
+    /// clusters of neighbours.
+    pub fn generate(links: &[Link], params: &SpherizeParams, cache: &SphereCache) -> Self {
+        let t = std::time::Instant::now();
+        let mut model = SphereModel::default();
+        for (i, link) in links.iter().enumerate() {
+            model.push_link(i, link, params.protrusion_of(&link.name), cache);
+        }
+        model.build.seconds = t.elapsed().as_secs_f64();
+        model
+    }
+
+    /// Appends the spheres of link `index` (the next link: links are added in order).
+    pub(crate) fn push_link(
+        &mut self,
+        index: usize,
+        link: &Link,
+        protrusion: f64,
+        cache: &SphereCache,
+    ) {
+        debug_assert_eq!(index, self.ranges.len(), "links are added in order");
+        let mut spheres: Vec<Sphere> = if link.collision.is_empty() {
+            Vec::new()
+        } else {
+            let (s, source) = cache::fitted(&link.collision, protrusion, cache);
+            match source {
+                Source::Fitted => self.build.fitted += 1,
+                Source::Disk => self.build.from_disk += 1,
+                Source::Memory => self.build.from_memory += 1,
+            }
+            s.to_vec()
+        };
+        let start = self.len();
+        let cluster_start = self.clusters.len();
+        let mut groups = Vec::new();
+        split_clusters(&mut spheres, &mut groups);
+        for group in groups {
+            let first = self.len();
+            for (c, r) in group {
+                self.link.push(index as u32);
+                self.center.push(c);
+                self.radius.push(r);
+            }
+            let range = first..self.len();
+            let (center, radius) =
+                bounding_sphere(&self.center[range.clone()], &self.radius[range.clone()])
+                    .expect("clusters are not empty");
+            self.clusters.push(Cluster {
+                range,
+                center,
+                radius,
+            });
+        }
+        let range = start..self.len();
+        self.bounds.push(bounding_sphere(
+            &self.center[range.clone()],
+            &self.radius[range.clone()],
+        ));
+        self.ranges.push(range);
+        self.link_clusters.push(cluster_start..self.clusters.len());
+    }
+
+    /// The spheres of link `link`.
+    pub fn link_spheres(&self, link: usize) -> impl Iterator<Item = Sphere> + '_ {
+        self.ranges[link]
+            .clone()
+            .map(move |s| (self.center[s], self.radius[s]))
+    }
+}
+
+/// How well spheres fit a link's geometry.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FitQuality {
+    /// Largest distance from a point of the spheres to the geometry, metres (sampled).
+    pub protrusion: f64,
+    /// Share of random surface points of the geometry inside some sphere.
+    pub coverage: f64,
+    /// Surface points drawn.
+    pub samples: usize,
+}
+
+/// Measures `spheres` (link frame) against the geometry `shapes`: protrusion over 200
+/// directions per sphere, coverage over `samples` area-weighted random surface points drawn
+/// with `seed`.
+pub fn measure(shapes: &[LinkShape], spheres: &[Sphere], samples: usize, seed: u64) -> FitQuality {
+    let parts: Vec<Part> = shapes.iter().map(Part::new).collect();
+    let dirs = fibonacci_directions(200);
+    let mut protrusion: f64 = 0.0;
+    for (c, r) in spheres {
+        for d in &dirs {
+            let p = [c[0] + r * d[0], c[1] + r * d[1], c[2] + r * d[2]];
+            let dist = parts
+                .iter()
+                .map(|q| q.distance(p))
+                .fold(f64::INFINITY, f64::min);
+            protrusion = protrusion.max(dist);
+        }
+    }
+    let (mut drawn, mut inside) = (0usize, 0usize);
+    surface_samples(&parts, samples, seed, |p| {
+        drawn += 1;
+        let p = Vector3::from(p);
+        inside += spheres
+            .iter()
+            .any(|(c, r)| (Vector3::from(*c) - p).norm() <= r + 1e-9) as usize;
+    });
+    FitQuality {
+        protrusion,
+        coverage: if drawn == 0 {
+            1.0
+        } else {
+            inside as f64 / drawn as f64
+        },
+        samples: drawn,
+    }
+}
+
+/// How well geometry `ours` matches `reference` (both link frame): the protrusion is the
+/// largest distance of a sampled point of `ours`'s surface from `reference`, the coverage the
+/// share of `reference`'s surface points inside `ours`.
+pub fn compare(
+    ours: &[LinkShape],
+    reference: &[LinkShape],
+    samples: usize,
+    seed: u64,
+) -> FitQuality {
+    let ours_parts: Vec<Part> = ours.iter().map(Part::new).collect();
+    let ref_parts: Vec<Part> = reference.iter().map(Part::new).collect();
+    let mut protrusion: f64 = 0.0;
+    surface_samples(&ours_parts, samples, seed, |p| {
+        let d = ref_parts
+            .iter()
+            .map(|q| q.distance(p))
+            .fold(f64::INFINITY, f64::min);
+        protrusion = protrusion.max(d);
+    });
+    let (mut drawn, mut inside) = (0usize, 0usize);
+    surface_samples(&ref_parts, samples, seed + 1, |p| {
+        drawn += 1;
+        inside += ours_parts.iter().any(|q| q.depth(p) >= -1e-6) as usize;
+    });
+    FitQuality {
+        protrusion,
+        coverage: if drawn == 0 {
+            1.0
+        } else {
+            inside as f64 / drawn as f64
+        },
+        samples: drawn,
+    }
+}
+
+/// Calls `f` with `n` area-weighted random points of the parts' union surface (points inside
+/// another part are skipped and redrawn).
+fn surface_samples(parts: &[Part], n: usize, seed: u64, mut f: impl FnMut([f64; 3])) {
+    let triangles: Vec<&[[f64; 3]; 3]> = parts.iter().flat_map(|p| p.triangles()).collect();
+    let mut cumulative = Vec::with_capacity(triangles.len());
+    let mut total = 0.0;
+    for t in &triangles {
+        total += fit::triangle_area(t);
+        cumulative.push(total);
+    }
+    if total <= 0.0 {
+        return;
+    }
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(seed);
+    let mut drawn = 0;
+    let mut tries = 0;
+    while drawn < n && tries < 20 * n {
+        tries += 1;
+        let pick = rng.random::<f64>() * total;
+        let k = cumulative
+            .partition_point(|&c| c < pick)
+            .min(triangles.len() - 1);
+        let (mut u, mut v): (f64, f64) = (rng.random(), rng.random());
+        if u + v > 1.0 {
+            (u, v) = (1.0 - u, 1.0 - v);
+        }
+        let [a, b, c] = triangles[k].map(Vector3::from);
+        let p = a + (b - a) * u + (c - a) * v;
+        let p = [p.x, p.y, p.z];
+        if parts.iter().any(|q| q.depth(p) > 1e-6) {
+            continue;
+        }
+        drawn += 1;
+        f(p);
+    }
+}
+
+/// Surface triangles of a collision part, in the link frame (primitives tessellated).
+pub fn surface_triangles(part: &LinkShape) -> Vec<[[f64; 3]; 3]> {
+    Part::new(part).triangles().to_vec()
+}
+
+/// `n` unit vectors spread evenly over the sphere (Fibonacci lattice).
+pub fn fibonacci_directions(n: usize) -> Vec<[f64; 3]> {
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    (0..n)
+        .map(|i| {
+            let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+            let r = (1.0 - z * z).sqrt();
+            let a = golden * i as f64;
+            [r * a.cos(), r * a.sin(), z]
+        })
+        .collect()
+}
+
+/// Splits spheres into spatially coherent groups of at most [`CLUSTER_SIZE`] (median split
+/// along the longest axis of the centres' extent).
+fn split_clusters(spheres: &mut [Sphere], out: &mut Vec<Vec<Sphere>>) {
+    if spheres.is_empty() {
+        return;
+    }
+    if spheres.len() <= CLUSTER_SIZE {
+        out.push(spheres.to_vec());
+        return;
+    }
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for (c, _) in spheres.iter() {
+        for k in 0..3 {
+            lo[k] = lo[k].min(c[k]);
+            hi[k] = hi[k].max(c[k]);
+        }
+    }
+    let axis = (0..3)
+        .max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b])))
+        .unwrap_or(0);
+    spheres.sort_by(|a, b| a.0[axis].total_cmp(&b.0[axis]));
+    // Split at a multiple of the cluster size so clusters come out full.
+    let half = spheres.len().div_ceil(2).div_ceil(CLUSTER_SIZE) * CLUSTER_SIZE;
+    let (a, b) = spheres.split_at_mut(half.min(spheres.len() - 1));
+    split_clusters(a, out);
+    split_clusters(b, out);
+}
+
+fn bounding_sphere(centers: &[[f64; 3]], radii: &[f64]) -> Option<([f64; 3], f64)> {
+    if centers.is_empty() {
+        return None;
+    }
+    let mut lo = Vector3::repeat(f64::INFINITY);
+    let mut hi = Vector3::repeat(f64::NEG_INFINITY);
+    for (c, r) in centers.iter().zip(radii) {
+        let c = Vector3::from(*c);
+        lo = lo.inf(&(c - Vector3::repeat(*r)));
+        hi = hi.sup(&(c + Vector3::repeat(*r)));
+    }
+    let mid = (lo + hi) / 2.0;
+    let radius = centers
+        .iter()
+        .zip(radii)
+        .map(|(c, r)| (Vector3::from(*c) - mid).norm() + r)
+        .fold(0.0, f64::max);
+    Some(([mid.x, mid.y, mid.z], radius))
+}
