@@ -39,8 +39,8 @@ pub enum RobotCommand {
     /// with measured protrusion and coverage, self-collision pairs; optionally a picture of the
     /// spheres over the geometry and an SRDF of the computed disabled pairs.
     Check(RobotCheckArgs),
-    /// Print the tightest single primitive (box, capsule or cylinder) around each collision
-    /// mesh as URDF collision elements, with its protrusion.
+    /// Print tight primitives (boxes, capsules, cylinders) around each collision mesh as URDF
+    /// collision elements, with their protrusion.
     Primitives(RobotPrimitivesArgs),
 }
 
@@ -82,6 +82,9 @@ pub struct RobotPrimitivesArgs {
     pub robot_positional: Option<String>,
     #[command(flatten)]
     pub robot: RobotArgs,
+    /// Most primitives per mesh part (slabs along its longest axis).
+    #[arg(long, default_value_t = 3)]
+    pub max_parts: usize,
 }
 
 #[derive(Debug, Args)]

@@ -106,12 +106,14 @@ impl<'a> SphereChecker<'a> {
             moving_pairs: Vec::new(),
             static_contact: None,
         };
-        // What never moves is checked once: the base against the world, body against body.
+        // What never moves is checked once, on the exact geometry (the base resting on the
+        // floor is not in contact, whatever its spheres say): the base against the world, body
+        // against body.
         let n = robot.links().len();
         let (moving, fixed): (Vec<usize>, Vec<usize>) = (0..n)
             .filter(|&l| robot.spheres().bounds[l].is_some())
             .partition(|&l| robot.link_moves(l));
-        let (moving_pairs, fixed_pairs) = robot.partition_pairs();
+        let (moving_pairs, _) = robot.partition_pairs();
         let q: Vec<f64> = robot
             .variables()
             .iter()
@@ -128,7 +130,9 @@ impl<'a> SphereChecker<'a> {
             }
             sut.link_stamp[l] = STATIC;
         }
-        sut.static_contact = sut.first_contact(&fixed, &fixed_pairs);
+        sut.static_contact = super::exact::ExactChecker::new(robot, env)
+            .static_contact()
+            .cloned();
         sut.moving_links = moving;
         sut.moving_pairs = moving_pairs;
         sut

@@ -183,6 +183,13 @@ impl<'a> ExactChecker<'a> {
         sut
     }
 
+    /// The contact among the parts that never move (links fixed to the root against the
+    /// world, and link pairs that keep their relative pose), if any: it blocks every
+    /// configuration.
+    pub fn static_contact(&self) -> Option<&Contact> {
+        self.static_contact.as_ref()
+    }
+
     /// Configurations checked so far.
     pub fn checks(&self) -> u64 {
         self.checks

@@ -85,7 +85,7 @@ impl Default for PlannerParams {
             seed: 0,
             simplify: true,
             ik: IkParams::default(),
-            exact_radius: 0.3,
+            exact_radius: 0.75,
             dynamic_domain: Some(rrt_connect::DynamicDomain::default()),
         }
     }
@@ -276,7 +276,19 @@ pub fn plan(
         }
         Goal::Pose(pg) => {
             let t = Instant::now();
-            let sols = ik::solve(&mut checker, pg, Some(&request.start), &params.ik, &mut rng)?;
+            // IK solutions are decided on the exact geometry, like joint goals.
+            let sols = ik::solve(
+                checker.exact(),
+                pg,
+                Some(&request.start),
+                &params.ik,
+                &mut rng,
+            )?;
+            for q in &sols {
+                if !checker.spheres().is_valid(q) {
+                    checker.add_anchor(q);
+                }
+            }
             stats.ik_s = t.elapsed().as_secs_f64();
             if sols.is_empty() {
                 return Err(PlanError::UnreachablePose {

@@ -6,7 +6,7 @@ pub mod datasets;
 
 pub use datasets::{dataset, DatasetSpec, Variation, DATASETS};
 
-use crate::collision::SphereChecker;
+use crate::collision::exact::ExactChecker;
 use crate::planning::{self, ik, Goal, PlannerParams, PlannerRng, PoseGoal, UniformSampler};
 use crate::robot::Robot;
 use crate::scene::moveit::{self, MotionRequest};
@@ -231,7 +231,9 @@ fn tip_ik(
         solutions: 1,
         ..Default::default()
     };
-    let mut checker = SphereChecker::new(robot, env);
+    // Decided on the exact geometry, as the planner decides goals: a grasp leaves the fingers
+    // closer to the can than the spheres' protrusion.
+    let mut checker = ExactChecker::new(robot, env);
     ik::solve(&mut checker, &pose_goal, None, &ik_params, rng)
         .ok()?
         .into_iter()

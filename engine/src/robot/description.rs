@@ -553,10 +553,13 @@ mod tests {
 
     #[test]
     fn mesh_in_an_embedded_robot_is_refused_with_the_link_name() {
-        let urdf = FETCH_URDF.replacen(
-            "<box size=\"0.12 0.13 0.09\"/>",
-            "<mesh filename=\"package://x/gripper.stl\"/>",
-            1,
+        let at = FETCH_URDF.find("<link name=\"gripper_link\">").unwrap();
+        let start = at + FETCH_URDF[at..].find("<geometry>").unwrap();
+        let end = start + FETCH_URDF[start..].find("</geometry>").unwrap();
+        let urdf = format!(
+            "{}<geometry><mesh filename=\"package://x/gripper.stl\"/>{}",
+            &FETCH_URDF[..start],
+            &FETCH_URDF[end..]
         );
         let err = from_parts(FETCH_TOML, &urdf).unwrap_err();
         assert!(err.to_string().contains("gripper_link"), "{err}");

@@ -156,8 +156,7 @@ pub fn read_mesh(path: &Path, scale: [f64; 3]) -> Result<TriangleMesh, String> {
 }
 
 impl TriangleMesh {
-    /// Refuses empty, huge, non-finite and non-manifold meshes (an edge shared by more than
-    /// two triangles once equal vertices are merged).
+    /// Refuses empty, huge and non-finite meshes.
     pub fn check(&self) -> Result<(), String> {
         if self.triangles.is_empty() {
             return Err("is empty (no triangles)".into());
@@ -171,6 +170,14 @@ impl TriangleMesh {
         if self.vertices.iter().flatten().any(|v| !v.is_finite()) {
             return Err("has a non-finite vertex coordinate".into());
         }
+        Ok(())
+    }
+
+    /// Why the mesh is not a manifold surface (an edge shared by more than two triangles once
+    /// equal vertices are merged), if it is not. Such meshes are still usable through their
+    /// convex hull (official Panda meshes have such edges; MoveIt accepts them), so this is a
+    /// warning, not an error.
+    pub fn manifold_issue(&self) -> Option<String> {
         let (welded, _) = self.welded();
         let mut uses: FxHashMap<(u32, u32), u32> = FxHashMap::default();
         for t in &welded {
@@ -183,7 +190,7 @@ impl TriangleMesh {
                 *n += 1;
                 if *n > 2 {
                     let p = self.vertices[a as usize];
-                    return Err(format!(
+                    return Some(format!(
                         "is non-manifold: an edge at ({:.4}, {:.4}, {:.4}) is shared by more \
                          than two triangles",
                         p[0], p[1], p[2]
@@ -191,7 +198,7 @@ impl TriangleMesh {
                 }
             }
         }
-        Ok(())
+        None
     }
 
     /// Triangles over merged vertices (equal coordinates share one index), and whether every
@@ -302,8 +309,10 @@ mod tests {
         let mut sut = tetra();
         sut.vertices.push([1.0, 1.0, 1.0]);
         sut.triangles.push([1, 2, 4]);
-        let err = sut.check().unwrap_err();
-        assert!(err.contains("non-manifold"), "{err}");
+        sut.check().unwrap();
+        let issue = sut.manifold_issue().unwrap();
+        assert!(issue.contains("non-manifold"), "{issue}");
+        assert_eq!(tetra().manifold_issue(), None);
     }
 
     #[test]

@@ -1,8 +1,10 @@
-//! Approximating convex mesh parts by single primitives: the smallest of a box, three capsules
-//! and three cylinders (one per principal axis) that contains the hull. Containing every hull
-//! vertex means containing the hull, so the primitive covers the mesh; its protrusion is what
-//! [`protrusion`] measures. `ember robot primitives` prints them as URDF collision elements:
-//! that is how our built-in descriptions were tightened against the official meshes.
+//! Approximating convex mesh parts by primitives. [`fit_primitive`]: the smallest of a box,
+//! three capsules and three cylinders (one per principal axis) that contains the hull;
+//! containing every hull vertex means containing the hull, so the primitive covers the mesh,
+//! and [`protrusion`] measures how far it sticks out. [`fit_primitives`]: the hull cut into
+//! slabs along a principal axis, one primitive per slab, so long or tapering parts fit
+//! tighter. `ember robot primitives` prints them as URDF collision elements: that is how our
+//! built-in descriptions were tightened against the official meshes.
 
 use crate::collision::convex::ConvexHull;
 use crate::collision::Shape;
@@ -92,6 +94,66 @@ pub fn fit_primitive(hull: &ConvexHull) -> (Shape, Pose) {
     }
     let (_, shape, pose) = best.expect("candidates were considered");
     (shape, pose)
+}
+
+/// Up to `max_parts` primitives that together contain the hull: it is cut into 1..=max_parts
+/// equal slabs along one of its principal axes and each slab gets [`fit_primitive`]; the cut
+/// with the least protrusion wins, fewer parts when within 3 mm. Returns (shape, pose,
+/// protrusion) per part.
+pub fn fit_primitives(hull: &ConvexHull, max_parts: usize) -> Vec<(Shape, Pose, f64)> {
+    let pts: Vec<Vector3<f64>> = hull.points.iter().map(|p| Vector3::from(*p)).collect();
+    let frame = principal_frame(&pts);
+    let local: Vec<Vector3<f64>> = pts.iter().map(|p| frame.transpose() * p).collect();
+    let (lo, hi) = extent(&local);
+    let mut best: Option<(f64, Vec<(Shape, Pose, f64)>)> = None;
+    for k in 1..=max_parts.max(1) {
+        for axis_k in 0..if k == 1 { 1 } else { 3 } {
+            let axis: Vector3<f64> = frame.column(axis_k).into_owned();
+            let mut parts = Vec::new();
+            for i in 0..k {
+                let a = lo[axis_k] + (hi[axis_k] - lo[axis_k]) * i as f64 / k as f64;
+                let b = lo[axis_k] + (hi[axis_k] - lo[axis_k]) * (i + 1) as f64 / k as f64;
+                let Some(piece) = slab(hull, &axis, a, b) else {
+                    continue;
+                };
+                let (shape, pose) = fit_primitive(&piece);
+                let stick = protrusion(hull, &shape, &pose);
+                parts.push((shape, pose, stick));
+            }
+            let worst = parts.iter().map(|p| p.2).fold(0.0, f64::max);
+            if best.as_ref().is_none_or(|(w, _)| worst < w - 0.003) {
+                best = Some((worst, parts));
+            }
+        }
+    }
+    best.map(|(_, p)| p).unwrap_or_default()
+}
+
+/// The part of the hull with `a <= axis·p <= b`.
+fn slab(hull: &ConvexHull, axis: &Vector3<f64>, a: f64, b: f64) -> Option<ConvexHull> {
+    let level = |p: &[f64; 3]| axis.dot(&Vector3::from(*p));
+    let mut pts: Vec<[f64; 3]> = hull
+        .points
+        .iter()
+        .filter(|p| (a - 1e-12..=b + 1e-12).contains(&level(p)))
+        .copied()
+        .collect();
+    for t in &hull.triangles {
+        for e in 0..3 {
+            let (p, q) = (
+                hull.points[t[e] as usize],
+                hull.points[t[(e + 1) % 3] as usize],
+            );
+            let (lp, lq) = (level(&p), level(&q));
+            for cut in [a, b] {
+                if (lp - cut) * (lq - cut) < 0.0 {
+                    let s = (cut - lp) / (lq - lp);
+                    pts.push([0, 1, 2].map(|k| p[k] + (q[k] - p[k]) * s));
+                }
+            }
+        }
+    }
+    ConvexHull::of_points(&pts).ok()
 }
 
 /// Largest distance from the primitive's surface to the hull, sampled on `samples` surface

@@ -74,6 +74,8 @@ pub struct Srdf {
     pub passive_joints: Vec<String>,
     /// Link pairs never checked against each other, with MoveIt's reason.
     pub disabled: Vec<(String, String, String)>,
+    /// Elements read past, as MoveIt does (e.g. unknown group members).
+    pub warnings: Vec<String>,
 }
 
 impl Srdf {
@@ -113,9 +115,10 @@ impl Srdf {
                             "joint" => g.joints.push(attr(m, "name")?),
                             "link" => g.links.push(attr(m, "name")?),
                             "group" => g.subgroups.push(attr(m, "name")?),
-                            other => {
-                                return Err(format!("group '{}': unknown member <{other}>", g.name))
-                            }
+                            other => srdf.warnings.push(format!(
+                                "group '{}': member <{other}> ignored, as MoveIt ignores it",
+                                g.name
+                            )),
                         }
                     }
                     srdf.groups.push(g);
@@ -172,17 +175,26 @@ impl Srdf {
         self.groups.iter().find(|g| g.name == name)
     }
 
-    /// The group planned by default: `arm_with_torso` when present, else the only group that
-    /// has a chain or joints (an error lists the candidates when there are several).
+    /// The group planned by default: `arm_with_torso` when present, else the only group with a
+    /// chain (else the only one with joints); an error lists the candidates when there are
+    /// several.
     pub fn default_group(&self) -> Result<&Group, String> {
         if let Some(g) = self.group("arm_with_torso") {
             return Ok(g);
         }
-        let candidates: Vec<&Group> = self
+        let chains: Vec<&Group> = self
             .groups
             .iter()
-            .filter(|g| !g.chains.is_empty() || !g.joints.is_empty())
+            .filter(|g| !g.chains.is_empty())
             .collect();
+        let candidates = if chains.is_empty() {
+            self.groups
+                .iter()
+                .filter(|g| !g.joints.is_empty())
+                .collect()
+        } else {
+            chains
+        };
         match candidates.as_slice() {
             [g] => Ok(g),
             [] => Err("has no group with a chain or joints to plan for".into()),

@@ -166,6 +166,11 @@ pub(crate) fn build(input: &BuildInput, info: &mut LoadInfo) -> Result<Built, Lo
         }
         GroupSource::Srdf { srdf, group } => {
             let (joints, tip) = srdf_group(srdf, group, urdf, &dfs_joints, input.semantics_name)?;
+            info.warnings.extend(
+                srdf.warnings
+                    .iter()
+                    .map(|w| format!("{}: {w}", input.semantics_name)),
+            );
             if let Some(v) = srdf.virtual_joints.first() {
                 if v.child_link != root {
                     return Err(sem_err(
@@ -680,6 +685,13 @@ fn convert_geometry(
             }
             let path = mesh::resolve(filename, base, input.packages)?;
             let m = mesh::read_mesh(&path, scale)?;
+            if let Some(issue) = m.manifold_issue() {
+                info.warnings.push(format!(
+                    "{}: link '{link}': mesh {} {issue}; its convex hull is used",
+                    input.urdf_name,
+                    path.display()
+                ));
+            }
             let parts = m
                 .convex_parts()
                 .map_err(|e| format!("mesh {} {e}", path.display()))?;

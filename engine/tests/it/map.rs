@@ -212,9 +212,10 @@ fn robot_filter_removes_points_on_the_robot() {
     let robot = Robot::builtin("fetch").unwrap();
     let q = robot.named_state("tuck").unwrap();
     let sut = RobotFilter::new(&robot, q, 0.02);
-    let gripper = robot.link_poses(q).unwrap()[robot.link_index("gripper_link").unwrap()]
-        .translation
-        .vector;
+    // A point inside the gripper: the centre of its first sphere.
+    let li = robot.link_index("gripper_link").unwrap();
+    let (c, _) = robot.spheres().link_spheres(li).next().unwrap();
+    let gripper = (robot.link_poses(q).unwrap()[li] * nalgebra::Point3::from(c)).coords;
     assert!(sut.contains([gripper.x, gripper.y, gripper.z]));
     assert!(!sut.contains([1.5, 0.0, 1.0]));
     let mut map = OccupancyMap::new(MapParams::default());

@@ -68,14 +68,21 @@ fn check(args: RobotCheckArgs) -> anyhow::Result<ExitCode> {
         );
     }
     let states: Vec<&str> = robot.named_state_names().collect();
-    println!(
-        "named states: {}",
-        if states.is_empty() {
-            "none".to_string()
-        } else {
-            states.join(", ")
-        }
-    );
+    if states.is_empty() {
+        println!("named states: none");
+    }
+    let empty = ember_engine::world::Environment::new();
+    let mut exact = ember_engine::collision::exact::ExactChecker::new(&robot, &empty);
+    let mut spheres = ember_engine::collision::SphereChecker::new(&robot, &empty);
+    for name in states {
+        let q = robot.named_state(name).expect("listed");
+        let verdict = match (exact.contact(q), spheres.contact(q)) {
+            (Some(c), _) => format!("in collision ({c})"),
+            (None, Some(c)) => format!("free; the spheres touch ({c})"),
+            (None, None) => "free".to_string(),
+        };
+        println!("named state {name}: {verdict}");
+    }
 
     println!(
         "\n{:<30} {:<44} {:>7} {:>14} {:>9}",
@@ -226,17 +233,21 @@ fn compare_with_reference(
         ..Default::default()
     };
     let other = super::load_robot(&spec)?;
-    println!("\nagainst the reference {}:", reference.display());
     println!(
-        "{:<30} {:>22} {:>16} {:>22} {:>16}",
-        "link",
-        "spheres protrusion_mm",
-        "spheres coverage",
-        "geometry protrusion_mm",
-        "geometry coverage"
+        "\nagainst the reference {} (protrusion: how far ours sticks out of it; coverage: share of \
+         its surface inside ours; gap: how far its surface lies outside ours):",
+        reference.display()
+    );
+    println!(
+        "{:<30} {:>13} {:>9} {:>7}   {:>13} {:>9} {:>7}",
+        "", "spheres", "", "", "geometry", "", ""
+    );
+    println!(
+        "{:<30} {:>13} {:>9} {:>7}   {:>13} {:>9} {:>7}",
+        "link", "protrusion_mm", "coverage", "gap_mm", "protrusion_mm", "coverage", "gap_mm"
     );
     let mut sum = [0.0f64; 2];
-    let mut worst = [0.0f64; 2];
+    let mut worst = [0.0f64; 4];
     let mut n = 0usize;
     for (i, link) in robot.links().iter().enumerate() {
         let Some(j) = other.link_index(&link.name) else {
@@ -252,25 +263,32 @@ fn compare_with_reference(
         let g = compare(&link.collision, theirs, args.coverage_samples, i as u64);
         let sp = s.protrusion;
         println!(
-            "{:<30} {:>22.1} {:>15.2}% {:>22.1} {:>15.2}%",
+            "{:<30} {:>13.1} {:>8.2}% {:>7.1}   {:>13.1} {:>8.2}% {:>7.1}",
             link.name,
             sp * 1e3,
             s.coverage * 100.0,
+            s.gap * 1e3,
             g.protrusion * 1e3,
-            g.coverage * 100.0
+            g.coverage * 100.0,
+            g.gap * 1e3
         );
         sum[0] += s.coverage * s.samples as f64;
         sum[1] += g.coverage * g.samples as f64;
         n += s.samples;
         worst[0] = worst[0].max(sp);
-        worst[1] = worst[1].max(g.protrusion);
+        worst[1] = worst[1].max(s.gap);
+        worst[2] = worst[2].max(g.protrusion);
+        worst[3] = worst[3].max(g.gap);
     }
     println!(
-        "over all links: spheres stick out at most {:.1} mm and cover {:.2}%; geometry sticks out at most {:.1} mm and covers {:.2}%",
+        "over all links: spheres stick out at most {:.1} mm, cover {:.2}% and miss it by at most {:.1} mm; \
+         geometry sticks out at most {:.1} mm, covers {:.2}% and misses it by at most {:.1} mm",
         worst[0] * 1e3,
         100.0 * sum[0] / n.max(1) as f64,
         worst[1] * 1e3,
-        100.0 * sum[1] / n.max(1) as f64
+        worst[2] * 1e3,
+        100.0 * sum[1] / n.max(1) as f64,
+        worst[3] * 1e3
     );
     Ok(())
 }
@@ -325,7 +343,7 @@ fn describe(robot: &Robot, link: &Link) -> String {
 }
 
 fn primitives(args: RobotPrimitivesArgs) -> anyhow::Result<ExitCode> {
-    use ember_engine::robot::primitives::{fit_primitive, protrusion};
+    use ember_engine::robot::primitives::fit_primitives;
     let spec = spec_of(&args.robot_positional, &args.robot);
     let robot = super::load_robot(&spec)?;
     println!(
@@ -337,35 +355,34 @@ fn primitives(args: RobotPrimitivesArgs) -> anyhow::Result<ExitCode> {
             let Geometry::Convex(hull) = &ls.geometry else {
                 continue;
             };
-            let (shape, local) = fit_primitive(hull);
-            let stick = protrusion(hull, &shape, &local);
-            let pose = ls.origin * local;
-            let (r, p, y) = pose.rotation.euler_angles();
-            let t = pose.translation.vector;
-            let geometry = match shape {
-                Shape::Box { half_extents: h } => format!(
-                    "<box size=\"{:.4} {:.4} {:.4}\"/>",
-                    2.0 * h[0],
-                    2.0 * h[1],
-                    2.0 * h[2]
-                ),
-                Shape::Cylinder {
-                    radius,
-                    half_length,
-                } => format!(
-                    "<cylinder radius=\"{radius:.4}\" length=\"{:.4}\"/>",
-                    2.0 * half_length
-                ),
-                Shape::Capsule {
-                    radius,
-                    half_length,
-                } => format!(
-                    "<capsule radius=\"{radius:.4}\" length=\"{:.4}\"/>",
-                    2.0 * half_length
-                ),
-                Shape::Sphere { radius } => format!("<sphere radius=\"{radius:.4}\"/>"),
-            };
-            println!(
+            for (shape, local, stick) in fit_primitives(hull, args.max_parts) {
+                let pose = ls.origin * local;
+                let (r, p, y) = pose.rotation.euler_angles();
+                let t = pose.translation.vector;
+                let geometry = match shape {
+                    Shape::Box { half_extents: h } => format!(
+                        "<box size=\"{:.4} {:.4} {:.4}\"/>",
+                        2.0 * h[0],
+                        2.0 * h[1],
+                        2.0 * h[2]
+                    ),
+                    Shape::Cylinder {
+                        radius,
+                        half_length,
+                    } => format!(
+                        "<cylinder radius=\"{radius:.4}\" length=\"{:.4}\"/>",
+                        2.0 * half_length
+                    ),
+                    Shape::Capsule {
+                        radius,
+                        half_length,
+                    } => format!(
+                        "<capsule radius=\"{radius:.4}\" length=\"{:.4}\"/>",
+                        2.0 * half_length
+                    ),
+                    Shape::Sphere { radius } => format!("<sphere radius=\"{radius:.4}\"/>"),
+                };
+                println!(
                 "<!-- {}: sticks out {:.1} mm --><collision><origin xyz=\"{:.4} {:.4} {:.4}\" rpy=\"{:.4} {:.4} {:.4}\"/><geometry>{geometry}</geometry></collision>",
                 link.name,
                 stick * 1e3,
@@ -376,6 +393,7 @@ fn primitives(args: RobotPrimitivesArgs) -> anyhow::Result<ExitCode> {
                 p,
                 y
             );
+            }
         }
     }
     Ok(ExitCode::SUCCESS)

@@ -204,6 +204,9 @@ pub struct FitQuality {
     pub protrusion: f64,
     /// Share of random surface points of the geometry inside some sphere.
     pub coverage: f64,
+    /// Largest distance of a surface point of the geometry outside the spheres, metres (0
+    /// when they cover it all).
+    pub gap: f64,
     /// Surface points drawn.
     pub samples: usize,
 }
@@ -225,13 +228,16 @@ pub fn measure(shapes: &[LinkShape], spheres: &[Sphere], samples: usize, seed: u
             protrusion = protrusion.max(dist);
         }
     }
-    let (mut drawn, mut inside) = (0usize, 0usize);
+    let (mut drawn, mut inside, mut gap) = (0usize, 0usize, 0.0f64);
     surface_samples(&parts, samples, seed, |p| {
         drawn += 1;
         let p = Vector3::from(p);
-        inside += spheres
+        let outside = spheres
             .iter()
-            .any(|(c, r)| (Vector3::from(*c) - p).norm() <= r + 1e-9) as usize;
+            .map(|(c, r)| (Vector3::from(*c) - p).norm() - r)
+            .fold(f64::INFINITY, f64::min);
+        inside += (outside <= 1e-9) as usize;
+        gap = gap.max(outside);
     });
     FitQuality {
         protrusion,
@@ -240,6 +246,7 @@ pub fn measure(shapes: &[LinkShape], spheres: &[Sphere], samples: usize, seed: u
         } else {
             inside as f64 / drawn as f64
         },
+        gap: if drawn == 0 { 0.0 } else { gap.max(0.0) },
         samples: drawn,
     }
 }
@@ -263,10 +270,15 @@ pub fn compare(
             .fold(f64::INFINITY, f64::min);
         protrusion = protrusion.max(d);
     });
-    let (mut drawn, mut inside) = (0usize, 0usize);
+    let (mut drawn, mut inside, mut gap) = (0usize, 0usize, 0.0f64);
     surface_samples(&ref_parts, samples, seed + 1, |p| {
         drawn += 1;
-        inside += ours_parts.iter().any(|q| q.depth(p) >= -1e-6) as usize;
+        let outside = ours_parts
+            .iter()
+            .map(|q| q.distance(p))
+            .fold(f64::INFINITY, f64::min);
+        inside += (outside <= 1e-6) as usize;
+        gap = gap.max(outside);
     });
     FitQuality {
         protrusion,
@@ -275,6 +287,7 @@ pub fn compare(
         } else {
             inside as f64 / drawn as f64
         },
+        gap: if drawn == 0 { 0.0 } else { gap.max(0.0) },
         samples: drawn,
     }
 }
