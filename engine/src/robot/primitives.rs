@@ -96,16 +96,19 @@ pub fn fit_primitive(hull: &ConvexHull) -> (Shape, Pose) {
     (shape, pose)
 }
 
+/// A primitive, its pose and its protrusion, metres.
+pub type FittedPart = (Shape, Pose, f64);
+
 /// Up to `max_parts` primitives that together contain the hull: it is cut into 1..=max_parts
 /// equal slabs along one of its principal axes and each slab gets [`fit_primitive`]; the cut
 /// with the least protrusion wins, fewer parts when within 3 mm. Returns (shape, pose,
 /// protrusion) per part.
-pub fn fit_primitives(hull: &ConvexHull, max_parts: usize) -> Vec<(Shape, Pose, f64)> {
+pub fn fit_primitives(hull: &ConvexHull, max_parts: usize) -> Vec<FittedPart> {
     let pts: Vec<Vector3<f64>> = hull.points.iter().map(|p| Vector3::from(*p)).collect();
     let frame = principal_frame(&pts);
     let local: Vec<Vector3<f64>> = pts.iter().map(|p| frame.transpose() * p).collect();
     let (lo, hi) = extent(&local);
-    let mut best: Option<(f64, Vec<(Shape, Pose, f64)>)> = None;
+    let mut best: Option<(f64, Vec<FittedPart>)> = None;
     for k in 1..=max_parts.max(1) {
         for axis_k in 0..if k == 1 { 1 } else { 3 } {
             let axis: Vector3<f64> = frame.column(axis_k).into_owned();

@@ -6,6 +6,7 @@ mod fk;
 mod map;
 mod moveit;
 mod planning;
+mod robot;
 
 /// The repository's `tests/fixtures` folder.
 pub fn fixtures() -> std::path::PathBuf {
