@@ -326,13 +326,15 @@ mod tests {
     }
 
     #[test]
-    fn default_group_needs_a_single_candidate() {
+    fn default_group_is_the_only_chain() {
         let sut = Srdf::parse(TEXT).unwrap();
-        let err = sut.default_group().unwrap_err();
-        assert!(
-            err.contains("manipulator") && err.contains("--group"),
-            "{err}"
+        assert_eq!(sut.default_group().unwrap().name, "manipulator");
+        let two = TEXT.replace(
+            "<group name=\"hand\">",
+            "<group name=\"other\"><chain base_link=\"base\" tip_link=\"l1\"/></group><group name=\"hand\">",
         );
+        let err = Srdf::parse(&two).unwrap().default_group().unwrap_err();
+        assert!(err.contains("manipulator") && err.contains("--group"), "{err}");
     }
 
     #[test]
