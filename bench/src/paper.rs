@@ -40,6 +40,9 @@ use std::time::Instant;
 
 #[derive(clap::Args)]
 pub struct Args {
+    /// The robot (default the built-in Fetch); problem sets are generated for it.
+    #[command(flatten)]
+    robot: ember_engine::robot::RobotArgs,
     /// Folder of the problem sets (generated there when missing).
     #[arg(long, default_value = "ember-data/problems")]
     problems: PathBuf,
@@ -573,7 +576,7 @@ fn print_results(kind: &str, dataset: &str, rows: &[Row]) {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let robot = Robot::builtin("fetch")?;
+    let robot = args.robot.spec("fetch").load()?;
     let (mut sizes, n_test, time_limit) = if args.quick {
         (vec![10, 50, 100], 25, 5.0)
     } else {

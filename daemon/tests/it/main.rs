@@ -5,6 +5,7 @@ mod demo;
 mod monitor;
 mod plan;
 mod recording;
+mod robot;
 
 use std::path::PathBuf;
 use std::process::{Command, Output};

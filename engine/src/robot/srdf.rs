@@ -334,7 +334,10 @@ mod tests {
             "<group name=\"other\"><chain base_link=\"base\" tip_link=\"l1\"/></group><group name=\"hand\">",
         );
         let err = Srdf::parse(&two).unwrap().default_group().unwrap_err();
-        assert!(err.contains("manipulator") && err.contains("--group"), "{err}");
+        assert!(
+            err.contains("manipulator") && err.contains("--group"),
+            "{err}"
+        );
     }
 
     #[test]
