@@ -304,8 +304,6 @@ pub(crate) fn search(
     };
     let mut sample = vec![0.0; dof];
     let mut target = vec![0.0; dof];
-    let mut from_start = true;
-    let mut stuck = false;
     let mut iterations = 0u64;
     loop {
         if iterations >= params.max_iterations
@@ -325,28 +323,16 @@ pub(crate) fn search(
         sampler.sample(robot, rng, &mut sample);
         search.stats.sample_s += t.elapsed().as_secs_f64();
 
-        // Grow the smaller tree (balanced bidirectional search), but take turns after a
-        // failed extension so a tree stuck in a narrow place cannot starve the other.
-        from_start = if stuck {
-            !from_start
-        } else {
-            start_tree.len() <= goal_tree.len()
-        };
+        // Grow the smaller tree (balanced bidirectional search).
+        let from_start = start_tree.len() <= goal_tree.len();
         let (a, b) = if from_start {
             (&mut start_tree, &mut goal_tree)
         } else {
             (&mut goal_tree, &mut start_tree)
         };
         let new = match search.extend(a, &sample) {
-            None => None,
-            Some(Extend::Trapped) => {
-                stuck = true;
-                None
-            }
-            Some(Extend::Advanced(i) | Extend::Reached(i)) => {
-                stuck = false;
-                Some(i)
-            }
+            None | Some(Extend::Trapped) => None,
+            Some(Extend::Advanced(i) | Extend::Reached(i)) => Some(i),
         };
         if let Some(new) = new {
             target.copy_from_slice(a.node(new));

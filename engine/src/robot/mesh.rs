@@ -316,6 +316,16 @@ mod tests {
     }
 
     #[test]
+    fn a_mesh_of_millions_of_triangles_is_refused() {
+        let sut = TriangleMesh {
+            vertices: tetra().vertices,
+            triangles: vec![[0, 1, 2]; MAX_TRIANGLES + 1],
+        };
+        let err = sut.check().unwrap_err();
+        assert!(err.contains("more than 1000000 triangles"), "{err}");
+    }
+
+    #[test]
     fn empty_mesh_is_refused() {
         let sut = TriangleMesh {
             vertices: vec![],
