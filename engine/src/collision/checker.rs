@@ -392,6 +392,14 @@ impl<'a> super::ConfigCheck<'a> for SphereChecker<'a> {
     }
 }
 
+/// Segments of the motion from `a` to `b` at `resolution`: `ceil(distance / resolution)`, the
+/// same in both directions (an edge of exactly a multiple of the resolution is not split one
+/// step finer one way by rounding), so every check of an edge samples the same states.
+#[inline]
+pub fn motion_steps(robot: &Robot, a: &[f64], b: &[f64], resolution: f64) -> usize {
+    (robot.distance(a, b) / resolution - 1e-9).ceil().max(0.0) as usize
+}
+
 /// Checks the states strictly between `a` and `b` at `resolution` with `valid`, coarse to
 /// fine (bisection order, so collisions in the middle are found early); `scratch` holds one
 /// configuration. The ends are not checked.
@@ -404,7 +412,7 @@ pub fn bisect_motion(
     scratch: &mut [f64],
     mut valid: impl FnMut(&[f64]) -> bool,
 ) -> bool {
-    let n = (robot.distance(a, b) / resolution).ceil() as usize;
+    let n = motion_steps(robot, a, b, resolution);
     if n < 2 {
         return true;
     }

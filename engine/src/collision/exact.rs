@@ -224,7 +224,7 @@ impl<'a> ExactChecker<'a> {
         b: &[f64],
         resolution: f64,
     ) -> Option<(f64, Contact)> {
-        let n = ((self.robot.distance(a, b) / resolution).ceil() as usize).max(1);
+        let n = super::checker::motion_steps(self.robot, a, b, resolution).max(1);
         let mut q = vec![0.0; a.len()];
         for k in 0..=n {
             let t = k as f64 / n as f64;

@@ -106,16 +106,16 @@ pub(crate) fn posed_distance(
         .expect("parry3d supports every pair of convex shapes")
 }
 
-/// True when two parry shapes at world poses touch or overlap.
+/// True when two parry shapes at world poses touch or overlap, decided by the GJK distance:
+/// parry3d 0.31's `intersection_test` errs both ways on some pairs (a cuboid and a cylinder
+/// ~9 mm apart reported touching; a cuboid inside a capsule's reach reported apart).
 pub(crate) fn posed_intersect(
     a: &dyn parry3d::shape::Shape,
     pose_a: &Pose,
     b: &dyn parry3d::shape::Shape,
     pose_b: &Pose,
 ) -> bool {
-    parry3d::query::intersection_test(&to_parry_pose(pose_a), a, &to_parry_pose(pose_b), b)
-        .map(|r| r.intersecting)
-        .expect("parry3d supports every pair of convex shapes")
+    posed_distance(a, pose_a, b, pose_b) <= 0.0
 }
 
 /// Minimum distance from link `link`'s collision geometry (at `poses`, from
@@ -186,6 +186,70 @@ mod tests {
             &Pose::translation(0.0, 0.5, 0.0),
         );
         assert!((d - 0.3).abs() < 1e-5, "{d}");
+    }
+
+    #[test]
+    fn intersection_agrees_with_distance_for_every_primitive_pair() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(3);
+        let shapes = [
+            Shape::cuboid([0.06, 0.013, 0.025]),
+            Shape::Cylinder {
+                radius: 0.03,
+                half_length: 0.06,
+            },
+            Shape::Capsule {
+                radius: 0.04,
+                half_length: 0.05,
+            },
+            Shape::Sphere { radius: 0.05 },
+        ];
+        let mut contacts = 0;
+        for _ in 0..4000 {
+            let a = shapes[rng.random_range(0..4)];
+            let b = shapes[rng.random_range(0..4)];
+            let mut pose = || {
+                Pose::from_parts(
+                    nalgebra::Translation3::new(
+                        0.8 + rng.random_range(-0.08..0.08),
+                        rng.random_range(-0.08..0.08),
+                        0.7 + rng.random_range(-0.08..0.08),
+                    ),
+                    UnitQuaternion::from_euler_angles(
+                        rng.random_range(-3.0..3.0),
+                        rng.random_range(-3.0..3.0),
+                        rng.random_range(-3.0..3.0),
+                    ),
+                )
+            };
+            let (pa, pb) = (pose(), pose());
+            let (sa, fa) = shared_shape(&a);
+            let (sb, fb) = shared_shape(&b);
+            let hit = posed_intersect(&*sa, &(pa * fa), &*sb, &(pb * fb));
+            // An independent oracle: a vertex of one tessellated surface 1 mm inside the other.
+            let deep = |x: &Shape, px: &Pose, y: &Shape, py: &Pose| {
+                let part = crate::robot::LinkShape {
+                    origin: *px,
+                    geometry: crate::robot::Geometry::Primitive(*x),
+                };
+                crate::robot::spheres::surface_triangles(&part)
+                    .iter()
+                    .flatten()
+                    .any(|p| {
+                        let l = py.inverse() * nalgebra::Point3::from(*p);
+                        distance_point_shape([l.x, l.y, l.z], y) < -1e-3
+                    })
+            };
+            if deep(&a, &pa, &b, &pb) || deep(&b, &pb, &a, &pa) {
+                contacts += 1;
+                assert!(hit, "{a:?} {b:?} overlap but no intersection");
+            }
+            let d = posed_distance(&*sa, &(pa * fa), &*sb, &(pb * fb));
+            if d > 1e-5 {
+                assert!(!hit, "{a:?} {b:?}: intersection at distance {d}");
+            }
+        }
+        assert!(contacts > 500, "{contacts}");
     }
 
     #[test]
