@@ -118,8 +118,9 @@ fn bound(parts: &[ExactPart]) -> Option<([f64; 3], f64)> {
 struct ExactObject {
     shape: SharedShape,
     pose: Pose,
-    center: Vector3<f64>,
-    radius: f64,
+    /// World axis-aligned bounds: the broad phase against parts' bounding spheres.
+    lo: Vector3<f64>,
+    hi: Vector3<f64>,
 }
 
 /// Exact validity of configurations of one robot in one environment.
@@ -150,11 +151,14 @@ impl<'a> ExactChecker<'a> {
             .iter()
             .map(|o| {
                 let (shape, adjust) = shared_shape(&o.shape);
+                let pose = o.pose * adjust;
+                let aabb = shape.compute_aabb(&super::parry::to_parry_pose(&pose));
+                let v = |p: parry3d::math::Vector| Vector3::new(p.x as f64, p.y as f64, p.z as f64);
                 ExactObject {
                     shape,
-                    pose: o.pose * adjust,
-                    center: o.pose.translation.vector,
-                    radius: o.shape.bounding_radius(),
+                    pose,
+                    lo: v(aabb.mins) - Vector3::repeat(1e-6),
+                    hi: v(aabb.maxs) + Vector3::repeat(1e-6),
                 }
             })
             .collect();
@@ -244,7 +248,9 @@ impl<'a> ExactChecker<'a> {
                 let pose = self.poses[li] * part.origin;
                 let c = (self.poses[li] * Point3::from(part.center)).coords;
                 for (o, obj) in self.objects.iter().enumerate() {
-                    if (c - obj.center).norm() > part.radius + obj.radius {
+                    // Distance from the part's bounding sphere centre to the object's box.
+                    let out = (obj.lo - c).sup(&(c - obj.hi)).sup(&Vector3::zeros());
+                    if out.norm() > part.radius {
                         continue;
                     }
                     if posed_intersect(&*part.shape, &pose, &*obj.shape, &obj.pose) {

@@ -57,7 +57,9 @@ pub enum Source {
     Fitted,
 }
 
-type Memo = Mutex<FxHashMap<[u8; 32], Arc<Vec<Sphere>>>>;
+/// Per content key, a cell filled once: concurrent loads of the same geometry (tests, threads)
+/// fit it once and wait for each other.
+type Memo = Mutex<FxHashMap<[u8; 32], Arc<OnceLock<Arc<Vec<Sphere>>>>>>;
 
 fn memo() -> &'static Memo {
     static MEMO: OnceLock<Memo> = OnceLock::new();
@@ -76,30 +78,31 @@ pub(crate) fn fitted(
     cache: &SphereCache,
 ) -> (Arc<Vec<Sphere>>, Source) {
     let key = content_key(shapes, protrusion);
-    if let Some(s) = memo().lock().unwrap_or_else(|e| e.into_inner()).get(&key) {
-        return (s.clone(), Source::Memory);
-    }
-    let file = cache
-        .dir()
-        .map(|d| d.join("spheres-v1").join(format!("{}.bin", hex(&key))));
-    let (spheres, source) = match file.as_deref().and_then(read) {
-        Some(s) => (s, Source::Disk),
-        None => {
-            let s = fit(shapes, protrusion);
-            if let Some(f) = &file {
-                if let Err(e) = write(f, &s) {
-                    tracing::warn!("sphere cache {} not written: {e}", f.display());
-                }
-            }
-            (s, Source::Fitted)
-        }
-    };
-    let spheres = Arc::new(spheres);
-    memo()
+    let cell = memo()
         .lock()
         .unwrap_or_else(|e| e.into_inner())
-        .insert(key, spheres.clone());
-    (spheres, source)
+        .entry(key)
+        .or_default()
+        .clone();
+    let mut source = Source::Memory;
+    let spheres = cell.get_or_init(|| {
+        let file = cache
+            .dir()
+            .map(|d| d.join("spheres-v1").join(format!("{}.bin", hex(&key))));
+        if let Some(s) = file.as_deref().and_then(read) {
+            source = Source::Disk;
+            return Arc::new(s);
+        }
+        source = Source::Fitted;
+        let s = fit(shapes, protrusion);
+        if let Some(f) = &file {
+            if let Err(e) = write(f, &s) {
+                tracing::warn!("sphere cache {} not written: {e}", f.display());
+            }
+        }
+        Arc::new(s)
+    });
+    (spheres.clone(), source)
 }
 
 fn content_key(shapes: &[LinkShape], protrusion: f64) -> [u8; 32] {
