@@ -114,12 +114,7 @@ impl<'a> SphereChecker<'a> {
             .filter(|&l| robot.spheres().bounds[l].is_some())
             .partition(|&l| robot.link_moves(l));
         let (moving_pairs, _) = robot.partition_pairs();
-        let q: Vec<f64> = robot
-            .variables()
-            .iter()
-            .map(|v| (v.lower + v.upper) / 2.0)
-            .collect();
-        robot.forward_kinematics_frames(&q, &mut sut.poses);
+        robot.forward_kinematics_frames(&robot.middle(), &mut sut.poses);
         sut.epoch = 1;
         for &l in &fixed {
             sut.place_bound(l);

@@ -177,12 +177,7 @@ impl<'a> ExactChecker<'a> {
             static_contact: None,
             checks: 0,
         };
-        let mid: Vec<f64> = robot
-            .variables()
-            .iter()
-            .map(|v| (v.lower + v.upper) / 2.0)
-            .collect();
-        robot.forward_kinematics(&mid, &mut sut.poses);
+        robot.forward_kinematics(&robot.middle(), &mut sut.poses);
         sut.static_contact = sut.first_contact(&fixed, &fixed_pairs);
         sut
     }

@@ -135,6 +135,14 @@ impl Robot {
         s.sqrt()
     }
 
+    /// The configuration in the middle of every joint's limits.
+    pub fn middle(&self) -> Vec<f64> {
+        self.variables
+            .iter()
+            .map(|v| (v.lower + v.upper) / 2.0)
+            .collect()
+    }
+
     /// Writes the configuration a fraction `t` of the way from `a` to `b` into `out`.
     #[inline]
     pub fn interpolate(&self, a: &[f64], b: &[f64], t: f64, out: &mut [f64]) {

@@ -171,13 +171,7 @@ fn check(args: RobotCheckArgs) -> anyhow::Result<ExitCode> {
                 .next()
                 .and_then(|s| robot.named_state(s))
                 .map(<[f64]>::to_vec)
-                .unwrap_or_else(|| {
-                    robot
-                        .variables()
-                        .iter()
-                        .map(|v| (v.lower + v.upper) / 2.0)
-                        .collect()
-                }),
+                .unwrap_or_else(|| robot.middle()),
         };
         picture::write(&robot, &q, path)?;
         println!(

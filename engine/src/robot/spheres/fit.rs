@@ -518,23 +518,6 @@ mod tests {
         }
     }
 
-    /// Largest distance of any sampled sphere-surface point from the geometry.
-    fn worst_protrusion(parts: &[Part], spheres: &[Sphere]) -> f64 {
-        let dirs = crate::robot::spheres::fibonacci_directions(200);
-        let mut worst: f64 = 0.0;
-        for (c, r) in spheres {
-            for d in &dirs {
-                let p = [c[0] + r * d[0], c[1] + r * d[1], c[2] + r * d[2]];
-                let dist = parts
-                    .iter()
-                    .map(|q| q.distance(p))
-                    .fold(f64::INFINITY, f64::min);
-                worst = worst.max(dist);
-            }
-        }
-        worst
-    }
-
     #[test]
     fn primitives_are_covered_within_the_protrusion() {
         for s in [
@@ -553,7 +536,7 @@ mod tests {
             let spheres = fit(&shapes, 0.01);
             assert!(!spheres.is_empty());
             let parts: Vec<Part> = shapes.iter().map(Part::new).collect();
-            let worst = worst_protrusion(&parts, &spheres);
+            let worst = crate::robot::spheres::sphere_protrusion(&parts, &spheres);
             assert!(worst <= 0.01 + 1e-6, "{s:?}: protrusion {worst}");
             // Every surface point (fresh random samples) lies in some sphere.
             let quality = crate::robot::spheres::measure(&shapes, &spheres, 2000, 7);
@@ -585,7 +568,7 @@ mod tests {
         }];
         let spheres = fit(&shapes, 0.01);
         let parts: Vec<Part> = shapes.iter().map(Part::new).collect();
-        assert!(worst_protrusion(&parts, &spheres) <= 0.01 + 1e-6);
+        assert!(crate::robot::spheres::sphere_protrusion(&parts, &spheres) <= 0.01 + 1e-6);
         let quality = crate::robot::spheres::measure(&shapes, &spheres, 2000, 3);
         assert_eq!(quality.coverage, 1.0);
     }

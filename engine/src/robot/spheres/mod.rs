@@ -216,8 +216,26 @@ pub struct FitQuality {
 /// with `seed`.
 pub fn measure(shapes: &[LinkShape], spheres: &[Sphere], samples: usize, seed: u64) -> FitQuality {
     let parts: Vec<Part> = shapes.iter().map(Part::new).collect();
+    let outside = |p: [f64; 3]| {
+        let p = Vector3::from(p);
+        spheres
+            .iter()
+            .map(|(c, r)| (Vector3::from(*c) - p).norm() - r)
+            .fold(f64::INFINITY, f64::min)
+    };
+    coverage(
+        &parts,
+        samples,
+        seed,
+        outside,
+        sphere_protrusion(&parts, spheres),
+    )
+}
+
+/// Largest distance from a point of the spheres (200 directions each) to the parts.
+pub(crate) fn sphere_protrusion(parts: &[Part], spheres: &[Sphere]) -> f64 {
     let dirs = fibonacci_directions(200);
-    let mut protrusion: f64 = 0.0;
+    let mut worst: f64 = 0.0;
     for (c, r) in spheres {
         for d in &dirs {
             let p = [c[0] + r * d[0], c[1] + r * d[1], c[2] + r * d[2]];
@@ -225,30 +243,10 @@ pub fn measure(shapes: &[LinkShape], spheres: &[Sphere], samples: usize, seed: u
                 .iter()
                 .map(|q| q.distance(p))
                 .fold(f64::INFINITY, f64::min);
-            protrusion = protrusion.max(dist);
+            worst = worst.max(dist);
         }
     }
-    let (mut drawn, mut inside, mut gap) = (0usize, 0usize, 0.0f64);
-    surface_samples(&parts, samples, seed, |p| {
-        drawn += 1;
-        let p = Vector3::from(p);
-        let outside = spheres
-            .iter()
-            .map(|(c, r)| (Vector3::from(*c) - p).norm() - r)
-            .fold(f64::INFINITY, f64::min);
-        inside += (outside <= 1e-9) as usize;
-        gap = gap.max(outside);
-    });
-    FitQuality {
-        protrusion,
-        coverage: if drawn == 0 {
-            1.0
-        } else {
-            inside as f64 / drawn as f64
-        },
-        gap: if drawn == 0 { 0.0 } else { gap.max(0.0) },
-        samples: drawn,
-    }
+    worst
 }
 
 /// How well geometry `ours` matches `reference` (both link frame): the protrusion is the
@@ -262,23 +260,40 @@ pub fn compare(
 ) -> FitQuality {
     let ours_parts: Vec<Part> = ours.iter().map(Part::new).collect();
     let ref_parts: Vec<Part> = reference.iter().map(Part::new).collect();
+    let distance = |parts: &[Part], p: [f64; 3]| {
+        parts
+            .iter()
+            .map(|q| q.distance(p))
+            .fold(f64::INFINITY, f64::min)
+    };
     let mut protrusion: f64 = 0.0;
     surface_samples(&ours_parts, samples, seed, |p| {
-        let d = ref_parts
-            .iter()
-            .map(|q| q.distance(p))
-            .fold(f64::INFINITY, f64::min);
-        protrusion = protrusion.max(d);
+        protrusion = protrusion.max(distance(&ref_parts, p));
     });
+    coverage(
+        &ref_parts,
+        samples,
+        seed + 1,
+        |p| distance(&ours_parts, p),
+        protrusion,
+    )
+}
+
+/// Coverage and gap of `parts`' surface (`samples` random points drawn with `seed`) under a
+/// model given by the distance `outside` from a point to it (0 or less: covered).
+fn coverage(
+    parts: &[Part],
+    samples: usize,
+    seed: u64,
+    outside: impl Fn([f64; 3]) -> f64,
+    protrusion: f64,
+) -> FitQuality {
     let (mut drawn, mut inside, mut gap) = (0usize, 0usize, 0.0f64);
-    surface_samples(&ref_parts, samples, seed + 1, |p| {
+    surface_samples(parts, samples, seed, |p| {
+        let d = outside(p);
         drawn += 1;
-        let outside = ours_parts
-            .iter()
-            .map(|q| q.distance(p))
-            .fold(f64::INFINITY, f64::min);
-        inside += (outside <= 1e-6) as usize;
-        gap = gap.max(outside);
+        inside += (d <= 1e-6) as usize;
+        gap = gap.max(d);
     });
     FitQuality {
         protrusion,
@@ -287,7 +302,7 @@ pub fn compare(
         } else {
             inside as f64 / drawn as f64
         },
-        gap: if drawn == 0 { 0.0 } else { gap.max(0.0) },
+        gap: gap.max(0.0),
         samples: drawn,
     }
 }
