@@ -6,6 +6,7 @@
 //! - `experience --train DIR --test DIR...`: the paper's experiment (uniform vs SPARK vs FLAME);
 //! - `ipc`: cloud hand-off and plan round-trip overhead through a real daemon;
 //! - `monitor`: plan latency with monitoring over Zenoh on against off;
+//! - `nearest`: the planner's nearest-neighbour index against a linear scan;
 //! - `retrieval`: SPARK and FLAME retrieval time against database size (against linear scans);
 //! - `paper`: the paper's experiments (training-size sweep, retrieval scaling), tables and plots;
 //! - `validity --problems DIR...`: start/goal verdicts against an exact FCL mesh checker.
@@ -17,6 +18,7 @@ mod ipc;
 mod learning;
 mod map;
 mod monitor;
+mod nearest;
 mod paper;
 mod plan;
 mod plot;
@@ -48,6 +50,8 @@ enum Bench {
     Ipc(ipc::Args),
     /// Plan latency with monitoring over Zenoh on against off (two real daemons).
     Monitor(monitor::Args),
+    /// Nearest-neighbour query time of the planner's index against a linear scan.
+    Nearest(nearest::Args),
     /// SPARK and FLAME retrieval time against database size, against linear scans.
     Retrieval(retrieval::Args),
     /// The paper's experiments: training-size sweep on the shelf datasets, tables and plots.
@@ -64,6 +68,7 @@ fn main() -> anyhow::Result<()> {
         Bench::Experience(a) => experience::run(a),
         Bench::Ipc(a) => ipc::run(a),
         Bench::Monitor(a) => monitor::run(a),
+        Bench::Nearest(a) => nearest::run(a),
         Bench::Retrieval(a) => retrieval::run(a),
         Bench::Paper(a) => paper::run(a),
         Bench::Validity(a) => validity::run(a),

@@ -67,6 +67,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let mut simplify = Vec::new();
         let mut validate = Vec::new();
         let (mut solved, mut start_refused, mut goal_refused) = (0, 0, 0);
+        let mut split = Split::default();
         for p in &set.problems {
             let env = p.scene.environment()?;
             let robot = p.scene.robot_with(&robot, &p.request.start_joints)?;
@@ -89,6 +90,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     times.push((total - res.stats.simplify_s - res.stats.validate_s) * 1e3);
                     simplify.push(res.stats.simplify_s * 1e3);
                     validate.push(res.stats.validate_s * 1e3);
+                    split.add(&res.stats);
                 }
                 Err(e) => {
                     match e {
@@ -111,8 +113,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         results.push(format!(
             "RESULT plan set={} n={n} solved={solved} median_ms={median:.3} mean_ms={mean:.3} \
              p95_ms={p95:.3} start_refused={start_refused} goal_refused={goal_refused} \
-             simplify_ms={simp:.3} validate_ms={val:.3}",
-            set.name
+             simplify_ms={simp:.3} validate_ms={val:.3} {}",
+            set.name,
+            split.keys()
         ));
         loaded = Some((spec.robot.clone(), robot));
     }
@@ -120,4 +123,48 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("{line}");
     }
     Ok(())
+}
+
+/// Where the search time of the solved problems went, summed over the set.
+#[derive(Default)]
+struct Split {
+    search_s: f64,
+    sample_s: f64,
+    check_s: f64,
+    neighbour_s: f64,
+    configs: u64,
+    motions: u64,
+    iterations: u64,
+    fallbacks: u64,
+}
+
+impl Split {
+    fn add(&mut self, s: &ember_engine::planning::PlanStats) {
+        self.search_s += s.search_s;
+        self.sample_s += s.sample_s;
+        self.check_s += s.check_s;
+        self.neighbour_s += s.neighbour_s;
+        self.configs += s.config_checks;
+        self.motions += s.motion_checks;
+        self.iterations += s.iterations;
+        self.fallbacks += s.exact_fallbacks;
+    }
+
+    /// `sample_pct check_pct neighbour_pct other_pct` of the search time, ns per checked
+    /// configuration, configurations per iteration and exact fallbacks.
+    fn keys(&self) -> String {
+        let pct = |x: f64| 100.0 * x / self.search_s.max(1e-12);
+        let other = self.search_s - self.sample_s - self.check_s - self.neighbour_s;
+        format!(
+            "sample_pct={:.1} check_pct={:.1} neighbour_pct={:.1} other_pct={:.1} \
+             check_ns_per_config={:.1} configs_per_iteration={:.1} exact_fallbacks={}",
+            pct(self.sample_s),
+            pct(self.check_s),
+            pct(self.neighbour_s),
+            pct(other.max(0.0)),
+            self.check_s * 1e9 / self.configs.max(1) as f64,
+            self.configs as f64 / self.iterations.max(1) as f64,
+            self.fallbacks
+        )
+    }
 }

@@ -50,6 +50,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<ExitCode> {
                         "config_checks": s.config_checks, "motion_checks": s.motion_checks,
                         "ik_ms": s.ik_s * 1e3, "search_ms": s.search_s * 1e3,
                         "sample_ms": s.sample_s * 1e3, "check_ms": s.check_s * 1e3,
+                        "neighbour_ms": s.neighbour_s * 1e3, "validate_ms": s.validate_s * 1e3,
                         "other_ms": s.other_s() * 1e3, "simplify_ms": s.simplify_s * 1e3,
                         "length_before": s.length_before, "length_after": s.length_after,
                     }
@@ -58,8 +59,8 @@ pub fn run(args: PlanArgs) -> anyhow::Result<ExitCode> {
             } else {
                 println!("status: solved ({} waypoints)", res.path.len());
                 println!(
-                    "time: {total_ms:.3} ms total = ik {:.3} + search {:.3} (sampling {:.3}, checking {:.3}, other {:.3}) + simplify {:.3}",
-                    s.ik_s * 1e3, s.search_s * 1e3, s.sample_s * 1e3, s.check_s * 1e3, s.other_s() * 1e3, s.simplify_s * 1e3
+                    "time: {total_ms:.3} ms total = ik {:.3} + search {:.3} (sampling {:.3}, checking {:.3}, neighbours {:.3}, other {:.3}) + simplify {:.3} + exact validation {:.3}",
+                    s.ik_s * 1e3, s.search_s * 1e3, s.sample_s * 1e3, s.check_s * 1e3, s.neighbour_s * 1e3, s.other_s() * 1e3, s.simplify_s * 1e3, s.validate_s * 1e3
                 );
                 println!(
                     "search: {} iterations, {} tree nodes, {} configuration checks, {} edge checks",

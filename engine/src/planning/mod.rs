@@ -3,6 +3,7 @@
 //! - [`sampler`]: the `Sampler` plug-in point and uniform sampling;
 //! - [`rrt_connect`]: bidirectional RRT over the planning group;
 //! - [`simplify`]: shortcutting and redundant-vertex removal;
+//! - [`nearest`]: nearest-neighbour index over tree nodes;
 //! - [`ik`]: damped-least-squares inverse kinematics with restarts, collision-aware;
 //! - [`validity`]: the sphere model with an exact fallback near terminal states.
 //!
@@ -11,6 +12,7 @@
 //! geometry.
 
 pub mod ik;
+pub mod nearest;
 pub mod rrt_connect;
 pub mod sampler;
 pub mod simplify;
@@ -172,7 +174,9 @@ pub struct PlanStats {
     pub sample_s: f64,
     /// Time checking collisions during the search, seconds.
     pub check_s: f64,
-    /// Whole search time, seconds (sampling + checking + the rest).
+    /// Time in nearest-neighbour queries during the search, seconds.
+    pub neighbour_s: f64,
+    /// Whole search time, seconds (sampling + checking + neighbours + the rest).
     pub search_s: f64,
     /// Inverse kinematics time, seconds.
     pub ik_s: f64,
@@ -189,9 +193,9 @@ pub struct PlanStats {
 }
 
 impl PlanStats {
-    /// Search time spent neither sampling nor checking, seconds.
+    /// Search time spent neither sampling, checking nor finding neighbours, seconds.
     pub fn other_s(&self) -> f64 {
-        (self.search_s - self.sample_s - self.check_s).max(0.0)
+        (self.search_s - self.sample_s - self.check_s - self.neighbour_s).max(0.0)
     }
 }
 

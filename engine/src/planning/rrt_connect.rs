@@ -2,11 +2,11 @@
 //! grown towards random samples and towards each other.
 //!
 //! Trees are flat arrays (`dof` values per node, a parent index per node). Nearest neighbours
-//! come from a k-d tree built incrementally over the same nodes (split on the bounded joints,
-//! cycling through them by depth; continuous joints wrap, so they are never split on), so a
-//! query costs about the logarithm of the tree's size instead of a scan of it. Nothing is
-//! allocated per iteration beyond the arrays' amortised growth.
+//! come from a [`NearestIndex`] built incrementally over the same nodes, so a query visits a
+//! few buckets instead of scanning the tree. Nothing is allocated per iteration beyond the
+//! arrays' amortised growth.
 
+use super::nearest::NearestIndex;
 use super::validity::Validity;
 use super::{PlanError, PlanStats, PlannerParams, PlannerRng, Sampler};
 use crate::robot::Robot;
@@ -14,24 +14,15 @@ use std::time::Instant;
 
 const ROOT: u32 = u32::MAX;
 
-/// A tree of configurations stored flat, with a k-d tree over its nodes.
+/// A tree of configurations stored flat, with a nearest-neighbour index over its nodes.
 struct Tree {
     dof: usize,
     q: Vec<f64>,
     parent: Vec<u32>,
-    /// Per node: its two k-d children (`NONE` when absent).
-    kd: Vec<[u32; 2]>,
-    /// Joints split on, cycled by depth (the bounded ones).
-    split_dims: Vec<usize>,
-    /// Per node: the joint it splits on.
-    split: Vec<u8>,
-    /// Search stack, kept between queries.
-    stack: Vec<(u32, f64)>,
+    index: NearestIndex,
     /// Per node: its dynamic-domain radius (infinite until an extension from it fails).
     domain: Vec<f64>,
 }
-
-const NONE: u32 = u32::MAX;
 
 impl Tree {
     fn new(dof: usize, continuous: &[bool]) -> Self {
@@ -39,10 +30,7 @@ impl Tree {
             dof,
             q: Vec::with_capacity(dof * 4096),
             parent: Vec::with_capacity(4096),
-            kd: Vec::with_capacity(4096),
-            split_dims: (0..dof).filter(|&j| !continuous[j]).collect(),
-            split: Vec::with_capacity(4096),
-            stack: Vec::with_capacity(256),
+            index: NearestIndex::new(continuous),
             domain: Vec::with_capacity(4096),
         }
     }
@@ -59,95 +47,15 @@ impl Tree {
         let i = self.parent.len();
         self.q.extend_from_slice(q);
         self.parent.push(parent);
-        self.kd.push([NONE, NONE]);
         self.domain.push(f64::INFINITY);
-        let mut depth = 0;
-        if i > 0 && !self.split_dims.is_empty() {
-            let mut at = 0usize;
-            loop {
-                let dim = self.split[at] as usize;
-                let side = (q[dim] >= self.q[at * self.dof + dim]) as usize;
-                depth += 1;
-                match self.kd[at][side] {
-                    NONE => {
-                        self.kd[at][side] = i as u32;
-                        break;
-                    }
-                    next => at = next as usize,
-                }
-            }
-        }
-        let dim = if self.split_dims.is_empty() {
-            0
-        } else {
-            self.split_dims[depth % self.split_dims.len()]
-        };
-        self.split.push(dim as u8);
+        self.index.insert(q, i as u32);
         i
-    }
-
-    /// Squared distance (continuous joints wrapped) from `target` to node `i`, or more than
-    /// `bound` when it exceeds it (early exit).
-    #[inline]
-    fn dist2(&self, continuous: &[bool], target: &[f64], i: usize, bound: f64) -> f64 {
-        let node = &self.q[i * self.dof..(i + 1) * self.dof];
-        let mut d2 = 0.0;
-        for j in 0..self.dof {
-            let mut d = target[j] - node[j];
-            if continuous[j] {
-                d = crate::robot::config_space::wrap_angle(d);
-            }
-            d2 += d * d;
-            if d2 >= bound {
-                break;
-            }
-        }
-        d2
     }
 
     /// Index of the node nearest to `target`.
     #[inline]
-    fn nearest(&mut self, continuous: &[bool], target: &[f64]) -> usize {
-        if self.split_dims.is_empty() {
-            let mut best = (f64::INFINITY, 0);
-            for i in 0..self.len() {
-                let d2 = self.dist2(continuous, target, i, best.0);
-                if d2 < best.0 {
-                    best = (d2, i);
-                }
-            }
-            return best.1;
-        }
-        let mut stack = std::mem::take(&mut self.stack);
-        stack.clear();
-        stack.push((0, 0.0));
-        let mut best = (f64::INFINITY, 0usize);
-        while let Some((at, bound)) = stack.pop() {
-            if bound >= best.0 {
-                continue;
-            }
-            let at = at as usize;
-            let d2 = self.dist2(continuous, target, at, best.0);
-            if d2 < best.0 {
-                best = (d2, at);
-            }
-            let dim = self.split[at] as usize;
-            let diff = target[dim] - self.q[at * self.dof + dim];
-            let (near, far) = if diff >= 0.0 {
-                (self.kd[at][1], self.kd[at][0])
-            } else {
-                (self.kd[at][0], self.kd[at][1])
-            };
-            // The far side is at least |diff| away along this joint.
-            if far != NONE {
-                stack.push((far, bound.max(diff * diff)));
-            }
-            if near != NONE {
-                stack.push((near, bound));
-            }
-        }
-        self.stack = stack;
-        best.1
+    fn nearest(&mut self, target: &[f64]) -> usize {
+        self.index.nearest(target).map_or(0, |(i, _)| i as usize)
     }
 
     /// Configurations from the root to node `i`.
@@ -174,7 +82,6 @@ enum Extend {
 struct Search<'c, 'a, 's> {
     checker: &'c mut Validity<'a>,
     robot: &'a Robot,
-    continuous: Vec<bool>,
     range: f64,
     domain: Option<DynamicDomain>,
     scratch: Vec<f64>,
@@ -204,11 +111,18 @@ impl Default for DynamicDomain {
 }
 
 impl Search<'_, '_, '_> {
+    fn nearest(&mut self, tree: &mut Tree, target: &[f64]) -> usize {
+        let t = Instant::now();
+        let near = tree.nearest(target);
+        self.stats.neighbour_s += t.elapsed().as_secs_f64();
+        near
+    }
+
     /// One step from the nearest node towards a sample. With a dynamic domain, samples
     /// farther from their nearest node than its radius are rejected (`None`), and the radius
     /// shrinks where extensions fail and grows where they succeed (Yershova et al. 2005).
     fn extend(&mut self, tree: &mut Tree, target: &[f64]) -> Option<Extend> {
-        let near = tree.nearest(&self.continuous, target);
+        let near = self.nearest(tree, target);
         if let Some(dd) = self.domain {
             if self.robot.distance(tree.node(near), target) > tree.domain[near] {
                 return None;
@@ -255,7 +169,7 @@ impl Search<'_, '_, '_> {
     /// Steps towards `target` until it is reached or blocked: from the nearest node first,
     /// then from each node just added (no further nearest-neighbour queries).
     fn connect(&mut self, tree: &mut Tree, target: &[f64]) -> Extend {
-        let mut from = tree.nearest(&self.continuous, target);
+        let mut from = self.nearest(tree, target);
         loop {
             match self.extend_from(tree, from, target) {
                 Extend::Advanced(i) => from = i,
@@ -295,7 +209,6 @@ pub(crate) fn search(
     }
     let mut search = Search {
         robot,
-        continuous,
         range: params.range,
         domain: params.dynamic_domain,
         scratch: vec![0.0; dof],

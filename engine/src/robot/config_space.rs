@@ -49,6 +49,9 @@ pub const LIMIT_TOLERANCE: f64 = 1e-5;
 /// Wraps an angle into `[-π, π)`.
 #[inline]
 pub fn wrap_angle(a: f64) -> f64 {
+    if (-PI..PI).contains(&a) {
+        return a;
+    }
     let w = (a + PI).rem_euclid(2.0 * PI) - PI;
     if w >= PI {
         w - 2.0 * PI

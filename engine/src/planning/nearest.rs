@@ -1,0 +1,430 @@
+//! Nearest-neighbour search over a growing set of configurations: a tree of buckets with
+//! tight bounding boxes, built incrementally.
+//!
+//! A leaf holds up to [`LEAF`] points, stored joint-major (structure of arrays) so the
+//! distances of a whole leaf are computed in vector lanes (AVX2 when the CPU has it, chosen
+//! at run time; the same arithmetic, no FMA, so both paths give the same answer). A full leaf
+//! splits at the median of its widest joint. Every node keeps the bounding box of the points
+//! below it, and a query visits nodes nearest box first, skipping any box farther than the
+//! best point found. Continuous joints are stored wrapped into [-π, π) and their boxes are
+//! arcs measured around the circle, so the index answers exactly the configuration-space
+//! metric.
+//!
+//! Tight boxes prune far better than split planes in eight dimensions, where queries are
+//! uniform samples, mostly far from a tree that grows along narrow branches.
+
+use crate::robot::config_space::wrap_angle;
+use std::f64::consts::{PI, TAU};
+
+/// Points per leaf before it splits.
+pub const LEAF: usize = 128;
+
+/// Slots per leaf: one more than [`LEAF`], for the point that triggers the split.
+const SLOTS: usize = LEAF + 1;
+
+const NONE: u32 = u32::MAX;
+
+/// The index (see the module docs).
+pub struct NearestIndex {
+    dof: usize,
+    continuous: Vec<bool>,
+    /// Per node: children, or `[NONE, leaf]` for a leaf.
+    children: Vec<[u32; 2]>,
+    /// Per node: box corners, `dof` values each (continuous joints wrapped).
+    lo: Vec<f64>,
+    hi: Vec<f64>,
+    /// Per leaf: `dof × SLOTS` coordinates, joint-major.
+    coords: Vec<f64>,
+    /// Per leaf: `SLOTS` point numbers.
+    ids: Vec<u32>,
+    /// Per leaf: points held.
+    len: Vec<u32>,
+    /// Query stack (node, lower bound of its distance²), kept between queries.
+    stack: Vec<(u32, f64)>,
+    target: Vec<f64>,
+    avx2: bool,
+}
+
+impl NearestIndex {
+    /// An empty index; `continuous[j]` when joint `j` wraps.
+    pub fn new(continuous: &[bool]) -> Self {
+        let dof = continuous.len();
+        NearestIndex {
+            dof,
+            continuous: continuous.to_vec(),
+            children: Vec::with_capacity(256),
+            lo: Vec::with_capacity(256 * dof),
+            hi: Vec::with_capacity(256 * dof),
+            coords: Vec::with_capacity(128 * SLOTS * dof),
+            ids: Vec::with_capacity(128 * SLOTS),
+            len: Vec::with_capacity(128),
+            stack: Vec::with_capacity(64),
+            target: vec![0.0; dof],
+            avx2: has_avx2(),
+        }
+    }
+
+    /// Points indexed (exact duplicates of an indexed point may be left out).
+    pub fn len(&self) -> usize {
+        self.len.iter().map(|&n| n as usize).sum()
+    }
+
+    /// True when nothing is indexed.
+    pub fn is_empty(&self) -> bool {
+        self.children.is_empty()
+    }
+
+    /// Adds point `id` at `p`.
+    pub fn insert(&mut self, p: &[f64], id: u32) {
+        let mut q = std::mem::take(&mut self.target);
+        self.wrapped(p, &mut q);
+        if self.children.is_empty() {
+            self.new_leaf(None);
+            self.push_node([NONE, 0], &q);
+        }
+        let mut at = 0usize;
+        loop {
+            self.grow_box(at, &q);
+            let [a, b] = self.children[at];
+            if a == NONE {
+                let leaf = b as usize;
+                self.put(leaf, &q, id);
+                if self.len[leaf] as usize == SLOTS {
+                    self.split(at);
+                }
+                break;
+            }
+            // Children's boxes may overlap; go where the box grows least (nearest).
+            let da = self.box_dist2(a as usize, &q, f64::INFINITY);
+            let db = self.box_dist2(b as usize, &q, f64::INFINITY);
+            at = if da <= db { a } else { b } as usize;
+        }
+        self.target = q;
+    }
+
+    /// The number and squared distance of the point nearest to `target`; `None` when empty.
+    pub fn nearest(&mut self, target: &[f64]) -> Option<(u32, f64)> {
+        if self.children.is_empty() {
+            return None;
+        }
+        let mut q = std::mem::take(&mut self.target);
+        self.wrapped(target, &mut q);
+        let mut stack = std::mem::take(&mut self.stack);
+        stack.clear();
+        stack.push((0, 0.0));
+        let mut best = (f64::INFINITY, NONE);
+        let mut d2 = [0.0; SLOTS];
+        while let Some((at, bound)) = stack.pop() {
+            if bound >= best.0 {
+                continue;
+            }
+            let [a, b] = self.children[at as usize];
+            if a == NONE {
+                let leaf = b as usize;
+                let n = self.len[leaf] as usize;
+                self.leaf_distances(leaf, &q, &mut d2);
+                for (k, &d) in d2[..n].iter().enumerate() {
+                    if d < best.0 {
+                        best = (d, self.ids[leaf * SLOTS + k]);
+                    }
+                }
+                continue;
+            }
+            let da = self.box_dist2(a as usize, &q, best.0);
+            let db = self.box_dist2(b as usize, &q, best.0);
+            let (near, dn, far, df) = if da <= db {
+                (a, da, b, db)
+            } else {
+                (b, db, a, da)
+            };
+            if df < best.0 {
+                stack.push((far, df));
+            }
+            if dn < best.0 {
+                stack.push((near, dn));
+            }
+        }
+        self.stack = stack;
+        self.target = q;
+        Some((best.1, best.0))
+    }
+
+    /// `p` with continuous joints wrapped into [-π, π).
+    fn wrapped(&self, p: &[f64], out: &mut [f64]) {
+        for j in 0..self.dof {
+            out[j] = if self.continuous[j] {
+                wrap_angle(p[j])
+            } else {
+                p[j]
+            };
+        }
+    }
+
+    fn push_node(&mut self, children: [u32; 2], p: &[f64]) -> usize {
+        self.children.push(children);
+        self.lo.extend_from_slice(p);
+        self.hi.extend_from_slice(p);
+        self.children.len() - 1
+    }
+
+    fn grow_box(&mut self, at: usize, p: &[f64]) {
+        let dof = self.dof;
+        let lo = &mut self.lo[at * dof..][..dof];
+        let hi = &mut self.hi[at * dof..][..dof];
+        for ((l, h), &v) in lo.iter_mut().zip(hi.iter_mut()).zip(p) {
+            *l = l.min(v);
+            *h = h.max(v);
+        }
+    }
+
+    /// A new empty leaf (or `slot` emptied), returning its number.
+    fn new_leaf(&mut self, slot: Option<usize>) -> usize {
+        match slot {
+            Some(l) => {
+                self.len[l] = 0;
+                l
+            }
+            None => {
+                self.coords
+                    .resize(self.coords.len() + SLOTS * self.dof, 0.0);
+                self.ids.resize(self.ids.len() + SLOTS, NONE);
+                self.len.push(0);
+                self.len.len() - 1
+            }
+        }
+    }
+
+    fn put(&mut self, leaf: usize, p: &[f64], id: u32) {
+        let k = self.len[leaf] as usize;
+        let base = leaf * SLOTS * self.dof;
+        for (j, &v) in p.iter().enumerate() {
+            self.coords[base + j * SLOTS + k] = v;
+        }
+        self.ids[leaf * SLOTS + k] = id;
+        self.len[leaf] += 1;
+    }
+
+    fn coord(&self, leaf: usize, j: usize, k: usize) -> f64 {
+        self.coords[leaf * SLOTS * self.dof + j * SLOTS + k]
+    }
+
+    /// Splits the full leaf of node `at` at the median of its widest joint into two leaves.
+    fn split(&mut self, at: usize) {
+        let dof = self.dof;
+        let leaf = self.children[at][1] as usize;
+        let dim = (0..dof)
+            .max_by(|&i, &j| {
+                let w = |d: usize| self.hi[at * dof + d] - self.lo[at * dof + d];
+                w(i).total_cmp(&w(j))
+            })
+            .unwrap_or(0);
+        let mut order: [(f64, u16); SLOTS] = [(0.0, 0); SLOTS];
+        for (k, o) in order.iter_mut().enumerate() {
+            *o = (self.coord(leaf, dim, k), k as u16);
+        }
+        order.sort_by(|x, y| x.0.total_cmp(&y.0));
+        let median = order[SLOTS / 2].0;
+        // Values equal to the median go right, unless that leaves the left side empty.
+        let mut cut = order.partition_point(|x| x.0 < median);
+        if cut == 0 {
+            cut = order.partition_point(|x| x.0 <= median);
+        }
+        if cut == SLOTS {
+            // Every point is the same (the widest joint has no width): the newest point
+            // duplicates the others, and a query finds them instead.
+            self.len[leaf] -= 1;
+            return;
+        }
+        // Copy the points out, then refill this leaf with the left side and a new one with
+        // the right side.
+        let points: Vec<(Vec<f64>, u32)> = order
+            .iter()
+            .map(|&(_, k)| {
+                let k = k as usize;
+                let p = (0..dof).map(|j| self.coord(leaf, j, k)).collect();
+                (p, self.ids[leaf * SLOTS + k])
+            })
+            .collect();
+        let left = self.new_leaf(Some(leaf));
+        let right = self.new_leaf(None);
+        let mut nodes = [NONE; 2];
+        for (side, (l, range)) in [(left, 0..cut), (right, cut..SLOTS)]
+            .into_iter()
+            .enumerate()
+        {
+            let first = &points[range.start].0;
+            let node = self.push_node([NONE, l as u32], first);
+            for (p, id) in &points[range] {
+                self.put(l, p, *id);
+                self.grow_box(node, p);
+            }
+            nodes[side] = node as u32;
+        }
+        self.children[at] = nodes;
+    }
+
+    /// Squared distances from `q` (wrapped) to every point of `leaf` (all `SLOTS`).
+    #[inline]
+    fn leaf_distances(&self, leaf: usize, q: &[f64], out: &mut [f64; SLOTS]) {
+        let coords = &self.coords[leaf * SLOTS * self.dof..][..SLOTS * self.dof];
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: the CPU has AVX2 (checked at construction).
+            unsafe { leaf_distances_avx2(coords, q, &self.continuous, out) };
+            return;
+        }
+        leaf_distances(coords, q, &self.continuous, out);
+    }
+
+    /// Squared distance from `p` (wrapped) to node `at`'s box, or anything ≥ `bound` once it
+    /// exceeds it.
+    #[inline]
+    fn box_dist2(&self, at: usize, p: &[f64], bound: f64) -> f64 {
+        let dof = self.dof;
+        let (lo, hi) = (&self.lo[at * dof..][..dof], &self.hi[at * dof..][..dof]);
+        let mut d2 = 0.0;
+        for j in 0..dof {
+            let d = if p[j] < lo[j] {
+                lo[j] - p[j]
+            } else if p[j] > hi[j] {
+                p[j] - hi[j]
+            } else {
+                0.0
+            };
+            // Around the circle, the arc's far end may be nearer.
+            let d = if self.continuous[j] && d > 0.0 {
+                d.min(TAU - (hi[j] - lo[j]) - d)
+            } else {
+                d
+            };
+            d2 += d * d;
+            if d2 >= bound {
+                break;
+            }
+        }
+        d2
+    }
+}
+
+/// The distance kernel: joint by joint over all slots, so the inner loop runs across lanes.
+/// Continuous joints are wrapped values, so their difference needs one correction at most.
+#[inline(always)]
+fn leaf_distances(coords: &[f64], q: &[f64], continuous: &[bool], out: &mut [f64; SLOTS]) {
+    *out = [0.0; SLOTS];
+    for (j, &qj) in q.iter().enumerate() {
+        let column: &[f64; SLOTS] = coords[j * SLOTS..][..SLOTS].try_into().unwrap();
+        if continuous[j] {
+            for k in 0..SLOTS {
+                let d = qj - column[k];
+                let d = if d > PI {
+                    d - TAU
+                } else if d < -PI {
+                    d + TAU
+                } else {
+                    d
+                };
+                out[k] += d * d;
+            }
+        } else {
+            for k in 0..SLOTS {
+                let d = qj - column[k];
+                out[k] += d * d;
+            }
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn leaf_distances_avx2(
+    coords: &[f64],
+    q: &[f64],
+    continuous: &[bool],
+    out: &mut [f64; SLOTS],
+) {
+    leaf_distances(coords, q, continuous, out)
+}
+
+fn has_avx2() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::robot::config_space::wrap_angle;
+    use rand::{Rng, SeedableRng};
+
+    fn dist2(a: &[f64], b: &[f64], cont: &[bool]) -> f64 {
+        (0..a.len())
+            .map(|j| {
+                let d = b[j] - a[j];
+                let d = if cont[j] { wrap_angle(d) } else { d };
+                d * d
+            })
+            .sum()
+    }
+
+    #[test]
+    fn nearest_equals_a_linear_scan() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+        for (dof, cont) in [
+            (8, vec![false, false, false, true, false, true, false, true]),
+            (3, vec![true, true, true]),
+            (2, vec![false, false]),
+        ] {
+            let mut points: Vec<Vec<f64>> = Vec::new();
+            let mut idx = NearestIndex::new(&cont);
+            for i in 0..3000u32 {
+                // A branching random walk (as trees grow), with values on continuous joints
+                // beyond ±π, and exact duplicates.
+                let p: Vec<f64> = match i {
+                    0 => vec![0.0; dof],
+                    _ => {
+                        let from = &points[rng.random_range(0..i as usize)];
+                        if i % 97 == 0 {
+                            from.clone()
+                        } else {
+                            from.iter()
+                                .map(|v| v + rng.random_range(-0.3..0.3))
+                                .collect()
+                        }
+                    }
+                };
+                idx.insert(&p, i);
+                points.push(p);
+                if i % 10 == 0 {
+                    let q: Vec<f64> = (0..dof).map(|_| rng.random_range(-7.0..7.0)).collect();
+                    let (got, d2) = idx.nearest(&q).unwrap();
+                    let truth = points
+                        .iter()
+                        .map(|p| dist2(p, &q, &cont))
+                        .fold(f64::INFINITY, f64::min);
+                    assert!((d2 - truth).abs() < 1e-9, "dof {dof}, {i} points");
+                    let direct = dist2(&points[got as usize], &q, &cont);
+                    assert!((direct - truth).abs() < 1e-9);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn many_duplicates_stay_findable() {
+        let mut idx = NearestIndex::new(&[false, true]);
+        for i in 0..200 {
+            idx.insert(&[1.0, 3.0], i);
+        }
+        idx.insert(&[2.0, -3.0], 200);
+        assert_eq!(idx.nearest(&[1.0, 3.1]).unwrap().0, 0);
+        let (id, d2) = idx.nearest(&[2.0, 3.2]).unwrap();
+        assert_eq!(id, 200);
+        assert!((d2 - (TAU - 6.2).powi(2)).abs() < 1e-12);
+    }
+}
