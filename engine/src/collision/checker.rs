@@ -71,7 +71,11 @@ pub struct SphereChecker<'a> {
     /// (`cluster_stamp`). A stamp equal to `epoch` means current; `STATIC` means placed once.
     bounds: Vec<[f64; 3]>,
     cluster_centers: Vec<[f64; 3]>,
-    centers: Vec<[f64; 3]>,
+    /// Sphere centres and radii, structure of arrays (lanes for the overlap kernel).
+    xs: Vec<f64>,
+    ys: Vec<f64>,
+    zs: Vec<f64>,
+    rs: Vec<f64>,
     link_stamp: Vec<u32>,
     cluster_stamp: Vec<u32>,
     epoch: u32,
@@ -96,7 +100,10 @@ impl<'a> SphereChecker<'a> {
             poses: vec![Frame::identity(); n_links],
             bounds: vec![[0.0; 3]; n_links],
             cluster_centers: vec![[0.0; 3]; robot.spheres().clusters.len()],
-            centers: vec![[0.0; 3]; robot.spheres().len()],
+            xs: vec![0.0; robot.spheres().len()],
+            ys: vec![0.0; robot.spheres().len()],
+            zs: vec![0.0; robot.spheres().len()],
+            rs: robot.spheres().radius.clone(),
             link_stamp: vec![0; n_links],
             cluster_stamp: vec![0; robot.spheres().clusters.len()],
             epoch: 0,
@@ -205,7 +212,7 @@ impl<'a> SphereChecker<'a> {
             for ci in model.link_clusters[li].clone() {
                 self.place_spheres(ci, li);
                 for s in model.clusters[ci].range.clone() {
-                    if let Some(o) = self.env.sphere_contact(self.centers[s], model.radius[s]) {
+                    if let Some(o) = self.env.sphere_contact(self.center(s), model.radius[s]) {
                         return Some(Contact::Object {
                             link: names[li].name.clone(),
                             object: o.to_string(),
@@ -290,8 +297,13 @@ impl<'a> SphereChecker<'a> {
         let pose = &self.poses[li];
         for s in model.clusters[ci].range.clone() {
             let w = pose * Point3::from(model.center[s]);
-            self.centers[s] = [w.x, w.y, w.z];
+            (self.xs[s], self.ys[s], self.zs[s]) = (w.x, w.y, w.z);
         }
+    }
+
+    #[inline]
+    fn center(&self, s: usize) -> [f64; 3] {
+        [self.xs[s], self.ys[s], self.zs[s]]
     }
 
     fn env_contact_any(&mut self) -> bool {
@@ -322,7 +334,7 @@ impl<'a> SphereChecker<'a> {
                 }
                 self.place_spheres(ci, li);
                 for s in cluster.range.clone() {
-                    let (p, r) = (self.centers[s], model.radius[s]);
+                    let (p, r) = (self.center(s), model.radius[s]);
                     if (cmask != 0 && env.sphere_collides_masked(p, r, cmask))
                         || (cmap && env.sphere_hits_map(p, r))
                     {
@@ -358,16 +370,17 @@ impl<'a> SphereChecker<'a> {
                     }
                     self.place_spheres(ca, a);
                     self.place_spheres(cb, b);
+                    let r = clb.range.clone();
+                    let lanes = [
+                        &self.xs[r.clone()],
+                        &self.ys[r.clone()],
+                        &self.zs[r.clone()],
+                        &self.rs[r],
+                    ];
                     for i in cla.range.clone() {
-                        for j in clb.range.clone() {
-                            if overlap(
-                                self.centers[i],
-                                model.radius[i],
-                                self.centers[j],
-                                model.radius[j],
-                            ) {
-                                return Some((a, b));
-                            }
+                        let sphere = [self.xs[i], self.ys[i], self.zs[i], self.rs[i]];
+                        if any_overlap(sphere, lanes) {
+                            return Some((a, b));
                         }
                     }
                 }
@@ -428,6 +441,22 @@ pub fn bisect_motion(
 
 /// Stamp of positions that never change (links that do not move).
 const STATIC: u32 = u32::MAX;
+
+/// True when the ball `[x, y, z, r]` overlaps any ball of the lanes (x, y, z, r arrays of
+/// equal length): branch-free over the lanes, so it runs in vector registers.
+#[inline]
+fn any_overlap(ball: [f64; 4], lanes: [&[f64]; 4]) -> bool {
+    let [xs, ys, zs, rs] = lanes;
+    let n = xs.len();
+    let (ys, zs, rs) = (&ys[..n], &zs[..n], &rs[..n]);
+    let mut hit = false;
+    for k in 0..n {
+        let (dx, dy, dz) = (ball[0] - xs[k], ball[1] - ys[k], ball[2] - zs[k]);
+        let r = ball[3] + rs[k];
+        hit |= dx * dx + dy * dy + dz * dz < r * r;
+    }
+    hit
+}
 
 #[inline]
 fn overlap(a: [f64; 3], ra: f64, b: [f64; 3], rb: f64) -> bool {
