@@ -28,8 +28,12 @@ const NONE: u32 = u32::MAX;
 pub struct NearestIndex {
     dof: usize,
     continuous: Vec<bool>,
+    /// Per joint: 2π on continuous joints, infinite on bounded ones.
+    period: Vec<f64>,
     /// Per node: children, or `[NONE, leaf]` for a leaf.
     children: Vec<[u32; 2]>,
+    /// Per node: the split (joint, value) of an inner node; left holds values below it.
+    split: Vec<(u32, f64)>,
     /// Per node: box corners, `dof` values each (continuous joints wrapped).
     lo: Vec<f64>,
     hi: Vec<f64>,
@@ -52,7 +56,12 @@ impl NearestIndex {
         NearestIndex {
             dof,
             continuous: continuous.to_vec(),
+            period: continuous
+                .iter()
+                .map(|&c| if c { TAU } else { f64::INFINITY })
+                .collect(),
             children: Vec::with_capacity(256),
+            split: Vec::with_capacity(256),
             lo: Vec::with_capacity(256 * dof),
             hi: Vec::with_capacity(256 * dof),
             coords: Vec::with_capacity(128 * SLOTS * dof),
@@ -94,10 +103,9 @@ impl NearestIndex {
                 }
                 break;
             }
-            // Children's boxes may overlap; go where the box grows least (nearest).
-            let da = self.box_dist2(a as usize, &q, f64::INFINITY);
-            let db = self.box_dist2(b as usize, &q, f64::INFINITY);
-            at = if da <= db { a } else { b } as usize;
+            // The split plane routes: the children's boxes stay apart along its joint.
+            let (dim, value) = self.split[at];
+            at = if q[dim as usize] < value { a } else { b } as usize;
         }
         self.target = q;
     }
@@ -130,8 +138,8 @@ impl NearestIndex {
                 }
                 continue;
             }
-            let da = self.box_dist2(a as usize, &q, best.0);
-            let db = self.box_dist2(b as usize, &q, best.0);
+            let da = self.box_dist2(a as usize, &q);
+            let db = self.box_dist2(b as usize, &q);
             let (near, dn, far, df) = if da <= db {
                 (a, da, b, db)
             } else {
@@ -162,6 +170,7 @@ impl NearestIndex {
 
     fn push_node(&mut self, children: [u32; 2], p: &[f64]) -> usize {
         self.children.push(children);
+        self.split.push((0, 0.0));
         self.lo.extend_from_slice(p);
         self.hi.extend_from_slice(p);
         self.children.len() - 1
@@ -261,6 +270,7 @@ impl NearestIndex {
             nodes[side] = node as u32;
         }
         self.children[at] = nodes;
+        self.split[at] = (dim as u32, points[cut].0[dim]);
     }
 
     /// Squared distances from `q` (wrapped) to every point of `leaf` (all `SLOTS`).
@@ -276,31 +286,19 @@ impl NearestIndex {
         leaf_distances(coords, q, &self.continuous, out);
     }
 
-    /// Squared distance from `p` (wrapped) to node `at`'s box, or anything ≥ `bound` once it
-    /// exceeds it.
+    /// Squared distance from `p` (wrapped) to node `at`'s box. Branch-free over the joints:
+    /// the gap below or above the box, and on continuous joints the way around the circle
+    /// when shorter (`period` is 2π there and infinite elsewhere).
     #[inline]
-    fn box_dist2(&self, at: usize, p: &[f64], bound: f64) -> f64 {
+    fn box_dist2(&self, at: usize, p: &[f64]) -> f64 {
         let dof = self.dof;
         let (lo, hi) = (&self.lo[at * dof..][..dof], &self.hi[at * dof..][..dof]);
+        let (p, period) = (&p[..dof], &self.period[..dof]);
         let mut d2 = 0.0;
         for j in 0..dof {
-            let d = if p[j] < lo[j] {
-                lo[j] - p[j]
-            } else if p[j] > hi[j] {
-                p[j] - hi[j]
-            } else {
-                0.0
-            };
-            // Around the circle, the arc's far end may be nearer.
-            let d = if self.continuous[j] && d > 0.0 {
-                d.min(TAU - (hi[j] - lo[j]) - d)
-            } else {
-                d
-            };
+            let d = (lo[j] - p[j]).max(p[j] - hi[j]).max(0.0);
+            let d = d.min(period[j] - (hi[j] - lo[j]) - d);
             d2 += d * d;
-            if d2 >= bound {
-                break;
-            }
         }
         d2
     }
