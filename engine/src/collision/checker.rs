@@ -161,6 +161,11 @@ impl<'a> SphereChecker<'a> {
         self.env
     }
 
+    /// True when links that never move touch something: every configuration is in collision.
+    pub fn blocked(&self) -> bool {
+        self.static_contact.is_some()
+    }
+
     /// Work done so far.
     pub fn stats(&self) -> CheckStats {
         self.stats

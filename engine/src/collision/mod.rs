@@ -4,12 +4,15 @@
 //! - [`distance`]: point-to-primitive signed distances, one file per pair;
 //! - [`checker`]: the fast path the planner uses (robot spheres against the environment, per-link
 //!   bounding spheres as broad phase, self-collision over configured pairs, edge checks);
+//! - [`batch`]: eight configurations at once in `f32` lanes, for the planner's edge checks
+//!   (errs towards contact; the scalar checker decides what it flags);
 //! - [`exact`]: the exact checker (the robot's own geometry, meshes as convex hulls, with
 //!   parry3d) for start/goal validity, path validation and contacts named precisely;
 //! - [`parry`]: parry3d conversions and exact distances (SPARK's criticality test). All parry3d
 //!   conversions live there;
 //! - [`convex`]: convex hulls of mesh geometry.
 
+pub mod batch;
 pub mod checker;
 pub mod convex;
 pub mod distance;

@@ -9,6 +9,7 @@
 //! again of the exact checker. Everywhere else the sphere verdict stands, so the inner loop
 //! stays on the fast path.
 
+use crate::collision::batch::BatchChecker;
 use crate::collision::checker::{bisect_motion, CheckStats};
 use crate::collision::exact::ExactChecker;
 use crate::collision::{ConfigCheck, SphereChecker};
@@ -19,6 +20,8 @@ use crate::world::Environment;
 pub struct Validity<'a> {
     robot: &'a Robot,
     spheres: SphereChecker<'a>,
+    /// Edge states eight at a time; `None` with an occupancy map (or when disabled).
+    batch: Option<BatchChecker>,
     exact: ExactChecker<'a>,
     anchors: Vec<Vec<f64>>,
     exact_radius: f64,
@@ -31,9 +34,16 @@ pub struct Validity<'a> {
 impl<'a> Validity<'a> {
     /// Checks for `robot` in `env` with edge resolution `resolution`.
     pub fn new(robot: &'a Robot, env: &'a Environment, resolution: f64, exact_radius: f64) -> Self {
+        let spheres = SphereChecker::new(robot, env).with_resolution(resolution);
+        let batch = if spheres.blocked() {
+            None
+        } else {
+            BatchChecker::new(robot, env)
+        };
         Validity {
             robot,
-            spheres: SphereChecker::new(robot, env).with_resolution(resolution),
+            spheres,
+            batch,
             exact: ExactChecker::new(robot, env),
             anchors: Vec::new(),
             exact_radius,
@@ -69,9 +79,17 @@ impl<'a> Validity<'a> {
         self.anchors.len()
     }
 
-    /// Sphere-model work so far (configurations and motions), and exact fallbacks.
+    /// Turns the eight-lane edge checks off (the scalar checker alone: the oracle).
+    pub fn without_batch(mut self) -> Self {
+        self.batch = None;
+        self
+    }
+
+    /// Sphere-model work so far (configurations, scalar and in lanes, and motions), and exact
+    /// fallbacks.
     pub fn stats(&self) -> (CheckStats, u64) {
         let mut s = self.spheres.stats();
+        s.configs += self.batch.as_ref().map_or(0, |b| b.states());
         s.motions = self.motions;
         (s, self.fallbacks)
     }
@@ -97,12 +115,19 @@ impl<'a> Validity<'a> {
     }
 
     /// True when the straight motion from `a` to `b` is free at the resolution (ends assumed
-    /// valid).
+    /// valid). The states go eight at a time through the batch checker; only an edge it
+    /// flags is decided state by state (spheres, then the exact fallback near anchors), so
+    /// the verdict is the scalar one.
     pub fn motion_valid(&mut self, a: &[f64], b: &[f64]) -> bool {
         self.motions += 1;
         let (robot, resolution) = (self.robot, self.resolution);
         let mut q = std::mem::take(&mut self.scratch);
-        let ok = bisect_motion(robot, resolution, a, b, &mut q, |q| self.is_valid(q));
+        let free_in_lanes = match self.batch.as_mut() {
+            Some(batch) => !batch.motion_may_collide(robot, resolution, a, b, &mut q),
+            None => false,
+        };
+        let ok =
+            free_in_lanes || bisect_motion(robot, resolution, a, b, &mut q, |q| self.is_valid(q));
         self.scratch = q;
         ok
     }

@@ -85,6 +85,15 @@ impl ObjectFrame {
     }
 }
 
+/// An object as the checkers see it (see [`Environment::placed`]).
+pub(crate) struct PlacedObject<'a> {
+    pub rot_t: [[f64; 3]; 3],
+    pub t: [f64; 3],
+    pub lo: [f64; 3],
+    pub hi: [f64; 3],
+    pub shape: &'a crate::collision::Shape,
+}
+
 /// Everything the robot must not touch, in the robot base frame.
 #[derive(Debug, Clone, Default)]
 pub struct Environment {
@@ -252,6 +261,21 @@ impl Environment {
     #[inline]
     pub(crate) fn sphere_collides_masked(&self, center: [f64; 3], radius: f64, mask: u64) -> bool {
         self.scan_masked(mask, |j| self.penetrates(j, center, radius))
+    }
+
+    /// Every object as the checkers place it: rows of the inverse rotation, world position of
+    /// its origin, world bounding box (low and high corners) and shape.
+    pub(crate) fn placed(&self) -> impl Iterator<Item = PlacedObject<'_>> + '_ {
+        self.frames
+            .iter()
+            .zip(&self.objects)
+            .map(|(f, o)| PlacedObject {
+                rot_t: f.rot_t,
+                t: f.t,
+                lo: f.lo,
+                hi: f.hi,
+                shape: &o.shape,
+            })
     }
 
     /// Calls `f` for each object index in `mask` until it returns true; returns whether it did.

@@ -206,3 +206,118 @@ fn sphere_model_is_conservative() {
         );
     }
 }
+
+/// A random scene of `n` objects of every kind within reach of the robot.
+fn random_scene(rng: &mut impl rand::Rng, n: usize) -> Environment {
+    let objects = (0..n).map(|i| {
+        let shape = match i % 4 {
+            0 => Shape::cuboid([
+                rng.random_range(0.05..0.6),
+                rng.random_range(0.05..0.6),
+                rng.random_range(0.02..0.4),
+            ]),
+            1 => Shape::Cylinder {
+                radius: rng.random_range(0.02..0.2),
+                half_length: rng.random_range(0.05..0.3),
+            },
+            2 => Shape::Sphere {
+                radius: rng.random_range(0.03..0.2),
+            },
+            _ => Shape::Capsule {
+                radius: rng.random_range(0.02..0.15),
+                half_length: rng.random_range(0.05..0.3),
+            },
+        };
+        let t = nalgebra::Translation3::new(
+            rng.random_range(-0.3..1.3),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(0.0..1.6),
+        );
+        let axis = nalgebra::Vector3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        );
+        let r = nalgebra::UnitQuaternion::from_scaled_axis(axis);
+        Object {
+            name: format!("o{i}"),
+            shape,
+            pose: Pose::from_parts(t, r),
+        }
+    });
+    Environment::from_objects(objects).unwrap()
+}
+
+/// The eight-lane checker against the scalar one (the oracle) on random scenes and
+/// configurations: it never misses a contact the scalar checker finds, and it flags a free
+/// configuration only at the margin's edge (rarely). Configurations are checked one per
+/// batch (all lanes equal) for per-configuration verdicts, and eight different ones per batch
+/// for the lanes' independence.
+#[test]
+fn batch_checker_agrees_with_the_scalar_checker() {
+    use ember_engine::collision::batch::{lanes::F8, BatchChecker};
+    use rand::SeedableRng;
+    let mut rng = rand::rngs::StdRng::seed_from_u64(11);
+    for name in ["fetch", "panda"] {
+        let robot = Robot::builtin(name).unwrap();
+        let dof = robot.dof();
+        let (mut configs, mut contacts, mut extra) = (0, 0, 0);
+        for scene in 0..20 {
+            let env = random_scene(&mut rng, 4 + scene % 6);
+            let mut scalar = SphereChecker::new(&robot, &env);
+            if scalar.blocked() {
+                // The base touches an object: decided once, exactly, by the scalar checker;
+                // the batch checker is not used then.
+                continue;
+            }
+            let mut batch = BatchChecker::new(&robot, &env).unwrap();
+            let mut q = vec![vec![0.0; dof]; 8];
+            for _ in 0..150 {
+                for qi in q.iter_mut() {
+                    robot.sample_uniform(&mut rng, qi);
+                }
+                let verdicts: Vec<bool> = q.iter().map(|qi| scalar.is_valid(qi)).collect();
+                for (qi, &valid) in q.iter().zip(&verdicts) {
+                    let lanes: Vec<F8> = (0..dof).map(|j| F8::splat(qi[j] as f32)).collect();
+                    let flagged = batch.may_collide(&lanes);
+                    configs += 1;
+                    if !valid {
+                        contacts += 1;
+                        assert!(
+                            flagged,
+                            "{name}: a contact missed at {qi:?}: {:?}",
+                            scalar.contact(qi)
+                        );
+                    } else if flagged {
+                        extra += 1;
+                    }
+                }
+                let lanes: Vec<F8> = (0..dof)
+                    .map(|j| F8(std::array::from_fn(|k| q[k][j] as f32)))
+                    .collect();
+                assert_eq!(
+                    batch.may_collide(&lanes),
+                    verdicts.iter().any(|v| !v) || {
+                        // Free in the scalar checker: the batch may only err at the margin,
+                        // which the per-configuration runs above counted.
+                        q.iter().any(|qi| {
+                            let l: Vec<F8> = (0..dof).map(|j| F8::splat(qi[j] as f32)).collect();
+                            batch.may_collide(&l)
+                        })
+                    },
+                    "{name}: lanes are not independent"
+                );
+            }
+        }
+        eprintln!("{name}: {configs} configurations, {contacts} in contact, {extra} flagged free");
+        // The test must bite: a good share of real contacts, and the margin rarely matters.
+        assert!(
+            contacts * 5 > configs,
+            "{name}: {contacts} contacts in {configs}"
+        );
+        assert!(
+            extra * 200 < configs,
+            "{name}: {extra} of {configs} flagged free configs"
+        );
+    }
+}

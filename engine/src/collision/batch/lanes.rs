@@ -1,0 +1,216 @@
+//! Eight `f32` lanes and the arithmetic the batch checker needs, written as plain loops over
+//! arrays: inside a function compiled for AVX2 each operation is one vector instruction, and
+//! elsewhere the compiler uses what the target has (SSE2 pairs, NEON). No fused multiply-add,
+//! so every path computes the same values.
+
+use std::ops::{Add, Mul, Neg, Sub};
+
+/// Number of lanes: configurations checked together.
+pub const LANES: usize = 8;
+
+/// Eight `f32` values, one per configuration.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[repr(C, align(32))]
+pub struct F8(pub [f32; LANES]);
+
+impl F8 {
+    /// Every lane `v`.
+    #[inline(always)]
+    pub fn splat(v: f32) -> Self {
+        F8([v; LANES])
+    }
+
+    #[inline(always)]
+    fn map2(self, o: F8, f: impl Fn(f32, f32) -> f32) -> F8 {
+        F8(std::array::from_fn(|k| f(self.0[k], o.0[k])))
+    }
+
+    #[inline(always)]
+    fn map(self, f: impl Fn(f32) -> f32) -> F8 {
+        F8(std::array::from_fn(|k| f(self.0[k])))
+    }
+
+    /// Lane-wise minimum.
+    #[inline(always)]
+    pub fn min(self, o: F8) -> F8 {
+        self.map2(o, |a, b| if a < b { a } else { b })
+    }
+
+    /// Lane-wise maximum.
+    #[inline(always)]
+    pub fn max(self, o: F8) -> F8 {
+        self.map2(o, |a, b| if a > b { a } else { b })
+    }
+
+    /// Lane-wise absolute value.
+    #[inline(always)]
+    pub fn abs(self) -> F8 {
+        self.map(f32::abs)
+    }
+
+    /// Lane-wise square root.
+    #[inline(always)]
+    pub fn sqrt(self) -> F8 {
+        self.map(f32::sqrt)
+    }
+
+    /// Bit `k` set where lane `k` of `self` is below lane `k` of `o`.
+    #[inline(always)]
+    pub fn lt_mask(self, o: F8) -> u32 {
+        let mut m = 0u32;
+        for k in 0..LANES {
+            m |= ((self.0[k] < o.0[k]) as u32) << k;
+        }
+        m
+    }
+
+    /// Sine and cosine of every lane, for angles of a few turns at most (joint values):
+    /// reduction by π/2 in two parts, then Taylor polynomials on [-π/4, π/4] (error below
+    /// 1e-7, the `f32` rounding).
+    #[inline(always)]
+    pub fn sin_cos(self) -> (F8, F8) {
+        const TWO_OVER_PI: f32 = std::f32::consts::FRAC_2_PI;
+        const PI_2_HI: f32 = 1.570_796_4;
+        const PI_2_LO: f32 = -4.371_139e-8;
+        let mut s = [0.0; LANES];
+        let mut c = [0.0; LANES];
+        for k in 0..LANES {
+            let x = self.0[k];
+            let n = (x * TWO_OVER_PI).round_ties_even();
+            let r = (x - n * PI_2_HI) - n * PI_2_LO;
+            let r2 = r * r;
+            let sin_r = r
+                * (1.0
+                    + r2 * (-1.0 / 6.0
+                        + r2 * (1.0 / 120.0 + r2 * (-1.0 / 5040.0 + r2 * (1.0 / 362_880.0)))));
+            let cos_r = 1.0
+                + r2 * (-0.5
+                    + r2 * (1.0 / 24.0
+                        + r2 * (-1.0 / 720.0 + r2 * (1.0 / 40_320.0 + r2 * (-1.0 / 3_628_800.0)))));
+            // Quadrant n mod 4: odd ones swap sine and cosine; the signs follow bit 1 of n
+            // (sine) and of n + 1 (cosine).
+            let q = n as i32;
+            let (a, b) = if q & 1 == 1 {
+                (cos_r, sin_r)
+            } else {
+                (sin_r, cos_r)
+            };
+            s[k] = if q & 2 == 2 { -a } else { a };
+            c[k] = if (q + 1) & 2 == 2 { -b } else { b };
+        }
+        (F8(s), F8(c))
+    }
+}
+
+impl Add for F8 {
+    type Output = F8;
+    #[inline(always)]
+    fn add(self, o: F8) -> F8 {
+        self.map2(o, |a, b| a + b)
+    }
+}
+
+impl Sub for F8 {
+    type Output = F8;
+    #[inline(always)]
+    fn sub(self, o: F8) -> F8 {
+        self.map2(o, |a, b| a - b)
+    }
+}
+
+impl Mul for F8 {
+    type Output = F8;
+    #[inline(always)]
+    fn mul(self, o: F8) -> F8 {
+        self.map2(o, |a, b| a * b)
+    }
+}
+
+impl Neg for F8 {
+    type Output = F8;
+    #[inline(always)]
+    fn neg(self) -> F8 {
+        F8::splat(0.0) - self
+    }
+}
+
+/// A rigid transform per lane: rotation `r` (row-major) and translation `t`.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Pose8 {
+    /// Rotation, row-major.
+    pub r: [F8; 9],
+    /// Translation.
+    pub t: [F8; 3],
+}
+
+impl Pose8 {
+    /// The same transform in every lane (row-major rotation, translation).
+    pub fn splat(r: [f32; 9], t: [f32; 3]) -> Self {
+        Pose8 {
+            r: r.map(F8::splat),
+            t: t.map(F8::splat),
+        }
+    }
+
+    /// `self * other`.
+    #[inline(always)]
+    pub fn compose(&self, o: &Pose8) -> Pose8 {
+        let a = &self.r;
+        let b = &o.r;
+        let mut r = [F8::default(); 9];
+        for i in 0..3 {
+            for j in 0..3 {
+                r[i * 3 + j] = a[i * 3] * b[j] + a[i * 3 + 1] * b[3 + j] + a[i * 3 + 2] * b[6 + j];
+            }
+        }
+        Pose8 {
+            r,
+            t: self.apply(o.t),
+        }
+    }
+
+    /// The image of lane points `p`.
+    #[inline(always)]
+    pub fn apply(&self, p: [F8; 3]) -> [F8; 3] {
+        let a = &self.r;
+        [
+            a[0] * p[0] + a[1] * p[1] + a[2] * p[2] + self.t[0],
+            a[3] * p[0] + a[4] * p[1] + a[5] * p[2] + self.t[1],
+            a[6] * p[0] + a[7] * p[1] + a[8] * p[2] + self.t[2],
+        ]
+    }
+
+    /// The image of the fixed point `c` (the same in every lane).
+    #[inline(always)]
+    pub fn apply_const(&self, c: [f32; 3]) -> [F8; 3] {
+        let a = &self.r;
+        let (x, y, z) = (F8::splat(c[0]), F8::splat(c[1]), F8::splat(c[2]));
+        [
+            a[0] * x + a[1] * y + a[2] * z + self.t[0],
+            a[3] * x + a[4] * y + a[5] * z + self.t[1],
+            a[6] * x + a[7] * y + a[8] * z + self.t[2],
+        ]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sin_cos_matches_std_over_joint_ranges() {
+        let mut worst = 0.0f32;
+        for i in 0..20_000 {
+            let x0 = -7.0 + 14.0 * i as f32 / 20_000.0;
+            let (s, c) = F8(std::array::from_fn(|k| x0 + k as f32 * 1e-4)).sin_cos();
+            for k in 0..LANES {
+                let x = x0 as f64 + k as f64 * 1e-4;
+                let x = x as f32 as f64;
+                worst = worst
+                    .max((s.0[k] as f64 - x.sin()).abs() as f32)
+                    .max((c.0[k] as f64 - x.cos()).abs() as f32);
+            }
+        }
+        assert!(worst < 5e-7, "worst error {worst}");
+    }
+}

@@ -1,0 +1,558 @@
+//! The batch checker: eight configurations at once in `f32` lanes (the states along an edge),
+//! for the planner's edge checks.
+//!
+//! Forward kinematics runs across the eight lanes (sine and cosine included); sphere centres
+//! are placed as lanes only where needed, down the same hierarchy as the scalar
+//! [`SphereChecker`](super::SphereChecker): a link's bounding sphere, then its clusters, then
+//! its spheres, against the objects whose world boxes the link's eight bounds reach, and over
+//! the self-collision pairs. The first lane in contact ends the check. Links that never move
+//! are not checked against the environment: the scalar checker decides that once, exactly
+//! ([`SphereChecker::blocked`](super::SphereChecker::blocked)), and the planner does not use
+//! this checker when it is so.
+//!
+//! Radii are enlarged by [`MARGIN`] (0.1 mm, far above `f32` rounding at robot scale), so a
+//! batch found free is free for the scalar checker too; a batch in contact is handed back to
+//! the scalar checker state by state ([`Validity`](crate::planning::validity::Validity) does),
+//! so the planner's verdicts are the scalar checker's, found faster. Maps are not handled here:
+//! with an occupancy map the planner stays on the scalar path.
+//!
+//! Compiled twice: for AVX2 (chosen at run time when the CPU has it) and for the baseline
+//! target; the arithmetic is the same (no fused multiply-add).
+
+pub mod lanes;
+
+use crate::collision::checker::motion_steps;
+use crate::collision::Shape;
+use crate::robot::{Motion, Robot};
+use crate::world::Environment;
+use lanes::{Pose8, F8, LANES};
+
+/// Added to every radius (metres): the batch checker errs towards contact.
+pub const MARGIN: f32 = 1e-4;
+
+#[derive(Clone, Copy)]
+enum Kind {
+    Fixed,
+    Revolute([f32; 3]),
+    Prismatic([f32; 3]),
+}
+
+#[derive(Clone, Copy)]
+enum ObjectKind {
+    Sphere { r: f32 },
+    Box { h: [f32; 3] },
+    Cylinder { r: f32, hl: f32 },
+    Capsule { r: f32, hl: f32 },
+}
+
+#[derive(Clone, Copy)]
+struct Object8 {
+    rot_t: [f32; 9],
+    t: [f32; 3],
+    lo: [f32; 3],
+    hi: [f32; 3],
+    kind: ObjectKind,
+}
+
+/// Eight-lane collision checks for one robot in one environment (see the module docs).
+pub struct BatchChecker {
+    dof: usize,
+    /// Per link: parent, origin (row-major rotation, translation), motion, variable.
+    parent: Vec<Option<usize>>,
+    origin: Vec<([f32; 9], [f32; 3])>,
+    kind: Vec<Kind>,
+    variable: Vec<usize>,
+    moves: Vec<bool>,
+    /// Links with spheres that move.
+    moving: Vec<usize>,
+    /// Per link: bound centre (link frame) and radius (+ margin), if it has spheres.
+    bound: Vec<Option<([f32; 3], f32)>>,
+    /// Per link: its clusters.
+    link_clusters: Vec<std::ops::Range<usize>>,
+    /// Per cluster: centre, radius (+ margin), spheres.
+    cluster: Vec<([f32; 3], f32, std::ops::Range<usize>)>,
+    /// Per sphere: centre (link frame), radius (+ margin).
+    sphere: Vec<([f32; 3], f32)>,
+    objects: Vec<Object8>,
+    /// Self-collision pairs with a moving link, both with spheres.
+    pairs: Vec<(usize, usize)>,
+    /// Per-batch state.
+    poses: Vec<Pose8>,
+    bounds: Vec<[F8; 3]>,
+    cluster_at: Vec<[F8; 3]>,
+    cluster_stamp: Vec<u32>,
+    sphere_at: Vec<[F8; 3]>,
+    sphere_stamp: Vec<u32>,
+    epoch: u32,
+    lanes: Vec<F8>,
+    /// States checked so far.
+    states: u64,
+    avx2: bool,
+}
+
+impl BatchChecker {
+    /// A batch checker, or `None` when the environment holds an occupancy map or more than 64
+    /// objects (the scalar checker handles those).
+    pub fn new(robot: &Robot, env: &Environment) -> Option<Self> {
+        if env.map().is_some() || env.objects().len() > 64 {
+            return None;
+        }
+        let links = robot.links();
+        let model = robot.spheres();
+        let f = |v: f64| v as f32;
+        let mut origin = Vec::new();
+        let mut kind = Vec::new();
+        let mut variable = Vec::new();
+        for (i, link) in links.iter().enumerate() {
+            let o = &robot.origin_frames[i];
+            let m = o.rotation.matrix();
+            let r = std::array::from_fn(|k| f(m[(k / 3, k % 3)]));
+            let t = o.translation.vector;
+            origin.push((r, [f(t.x), f(t.y), f(t.z)]));
+            let axis = |a: &nalgebra::Unit<nalgebra::Vector3<f64>>| [f(a.x), f(a.y), f(a.z)];
+            let (k, v) = match &link.motion {
+                Motion::Fixed => (Kind::Fixed, 0),
+                Motion::Revolute { axis: a, variable } => (Kind::Revolute(axis(a)), *variable),
+                Motion::Prismatic { axis: a, variable } => (Kind::Prismatic(axis(a)), *variable),
+            };
+            kind.push(k);
+            variable.push(v);
+        }
+        let moves: Vec<bool> = (0..links.len()).map(|l| robot.link_moves(l)).collect();
+        let bound: Vec<_> = model
+            .bounds
+            .iter()
+            .map(|b| b.map(|(c, r)| (c.map(f), f(r) + MARGIN)))
+            .collect();
+        let moving = (0..links.len())
+            .filter(|&l| moves[l] && bound[l].is_some())
+            .collect();
+        let cluster: Vec<_> = model
+            .clusters
+            .iter()
+            .map(|c| (c.center.map(f), f(c.radius) + MARGIN, c.range.clone()))
+            .collect();
+        let sphere: Vec<_> = (0..model.len())
+            .map(|s| (model.center[s].map(f), f(model.radius[s]) + MARGIN))
+            .collect();
+        let objects = env
+            .placed()
+            .map(|o| Object8 {
+                rot_t: std::array::from_fn(|k| f(o.rot_t[k / 3][k % 3])),
+                t: o.t.map(f),
+                lo: o.lo.map(f),
+                hi: o.hi.map(f),
+                kind: match *o.shape {
+                    Shape::Sphere { radius } => ObjectKind::Sphere { r: f(radius) },
+                    Shape::Box { half_extents } => ObjectKind::Box {
+                        h: half_extents.map(f),
+                    },
+                    Shape::Cylinder {
+                        radius,
+                        half_length,
+                    } => ObjectKind::Cylinder {
+                        r: f(radius),
+                        hl: f(half_length),
+                    },
+                    Shape::Capsule {
+                        radius,
+                        half_length,
+                    } => ObjectKind::Capsule {
+                        r: f(radius),
+                        hl: f(half_length),
+                    },
+                },
+            })
+            .collect();
+        let (moving_pairs, _) = robot.partition_pairs();
+        let pairs = moving_pairs
+            .into_iter()
+            .filter(|&(a, b)| bound[a].is_some() && bound[b].is_some())
+            .collect();
+        let n_links = links.len();
+        let mut sut = BatchChecker {
+            dof: robot.dof(),
+            parent: links.iter().map(|l| l.parent).collect(),
+            origin,
+            kind,
+            variable,
+            moves,
+            moving,
+            bound,
+            link_clusters: model.link_clusters.clone(),
+            cluster,
+            sphere,
+            objects,
+            pairs,
+            poses: vec![Pose8::default(); n_links],
+            bounds: vec![[F8::default(); 3]; n_links],
+            cluster_at: vec![[F8::default(); 3]; model.clusters.len()],
+            cluster_stamp: vec![0; model.clusters.len()],
+            sphere_at: vec![[F8::default(); 3]; model.len()],
+            sphere_stamp: vec![0; model.clusters.len()],
+            epoch: 0,
+            states: 0,
+            lanes: vec![F8::default(); robot.dof()],
+            avx2: has_avx2(),
+        };
+        // Links that never move have the same pose in every batch.
+        for l in 0..n_links {
+            if !sut.moves[l] {
+                sut.fk_link(l);
+            }
+        }
+        Some(sut)
+    }
+
+    /// True when any of the states strictly between `a` and `b` (at `resolution`, the
+    /// planner's discretisation) may touch something: the edge needs the scalar checker's
+    /// verdict. `false` means every state is free. `scratch` holds one configuration; the
+    /// states are checked eight at a time, coarse to fine.
+    pub fn motion_may_collide(
+        &mut self,
+        robot: &Robot,
+        resolution: f64,
+        a: &[f64],
+        b: &[f64],
+        scratch: &mut [f64],
+    ) -> bool {
+        let n = motion_steps(robot, a, b, resolution);
+        if n < 2 {
+            return false;
+        }
+        // Bisection order, eight states per batch (the last batch repeats its last state).
+        let mut batch = [0usize; LANES];
+        let mut filled = 0;
+        let mut step = 1usize << (usize::BITS - 1 - (n - 1).leading_zeros());
+        while step >= 1 {
+            let mut k = step;
+            while k < n {
+                batch[filled] = k;
+                filled += 1;
+                if filled == LANES {
+                    if self.states_may_collide(robot, a, b, n, &batch, scratch) {
+                        return true;
+                    }
+                    filled = 0;
+                }
+                k += 2 * step;
+            }
+            step /= 2;
+        }
+        if filled > 0 {
+            self.states -= (LANES - filled) as u64;
+            for i in filled..LANES {
+                batch[i] = batch[filled - 1];
+            }
+            return self.states_may_collide(robot, a, b, n, &batch, scratch);
+        }
+        false
+    }
+
+    fn states_may_collide(
+        &mut self,
+        robot: &Robot,
+        a: &[f64],
+        b: &[f64],
+        n: usize,
+        ks: &[usize; LANES],
+        scratch: &mut [f64],
+    ) -> bool {
+        self.states += LANES as u64;
+        for (lane, &k) in ks.iter().enumerate() {
+            robot.interpolate(a, b, k as f64 / n as f64, scratch);
+            for (j, &v) in scratch.iter().enumerate() {
+                self.lanes[j].0[lane] = v as f32;
+            }
+        }
+        self.lanes_may_collide()
+    }
+
+    /// True when any of the eight configurations in `self.lanes` may touch something.
+    fn lanes_may_collide(&mut self) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: the CPU has AVX2 (checked at construction).
+            return unsafe { self.check_avx2() };
+        }
+        self.check()
+    }
+
+    /// States checked so far (edge states; padding not counted).
+    pub fn states(&self) -> u64 {
+        self.states
+    }
+
+    /// Checks eight configurations given per variable (`lanes[j]` holds variable `j` of each).
+    pub fn may_collide(&mut self, lanes: &[F8]) -> bool {
+        self.lanes[..self.dof].copy_from_slice(&lanes[..self.dof]);
+        self.lanes_may_collide()
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn check_avx2(&mut self) -> bool {
+        self.check()
+    }
+
+    #[inline(always)]
+    fn check(&mut self) -> bool {
+        self.epoch = self.epoch.wrapping_add(1);
+        if self.epoch == 0 {
+            self.cluster_stamp.fill(0);
+            self.sphere_stamp.fill(0);
+            self.epoch = 1;
+        }
+        for l in 0..self.parent.len() {
+            if self.moves[l] {
+                self.fk_link(l);
+            }
+        }
+        for k in 0..self.moving.len() {
+            let l = self.moving[k];
+            let (c, _) = self.bound[l].unwrap_or_default();
+            self.bounds[l] = self.poses[l].apply_const(c);
+        }
+        self.env_contact() || self.self_contact()
+    }
+
+    #[inline(always)]
+    fn fk_link(&mut self, l: usize) {
+        let (r, t) = self.origin[l];
+        let origin = Pose8::splat(r, t);
+        let local = match self.kind[l] {
+            Kind::Fixed => origin,
+            Kind::Revolute(axis) => origin.compose(&rotation(axis, self.lanes[self.variable[l]])),
+            Kind::Prismatic(axis) => {
+                let v = self.lanes[self.variable[l]];
+                let mut m = Pose8::splat([1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0], [0.0; 3]);
+                m.t = axis.map(|a| F8::splat(a) * v);
+                origin.compose(&m)
+            }
+        };
+        self.poses[l] = match self.parent[l] {
+            None => local,
+            Some(p) => self.poses[p].compose(&local),
+        };
+    }
+
+    #[inline(always)]
+    fn place_cluster(&mut self, l: usize, ci: usize) {
+        if self.cluster_stamp[ci] != self.epoch {
+            self.cluster_stamp[ci] = self.epoch;
+            self.cluster_at[ci] = self.poses[l].apply_const(self.cluster[ci].0);
+        }
+    }
+
+    #[inline(always)]
+    fn place_spheres(&mut self, l: usize, ci: usize) {
+        if self.sphere_stamp[ci] != self.epoch {
+            self.sphere_stamp[ci] = self.epoch;
+            for s in self.cluster[ci].2.clone() {
+                self.sphere_at[s] = self.poses[l].apply_const(self.sphere[s].0);
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn env_contact(&mut self) -> bool {
+        if self.objects.is_empty() {
+            return false;
+        }
+        for k in 0..self.moving.len() {
+            let l = self.moving[k];
+            let (_, br) = self.bound[l].unwrap_or_default();
+            // Objects whose world box the link's bound reaches in some lane.
+            let b = self.bounds[l];
+            let lo = b.map(|v| hmin(v) - br);
+            let hi = b.map(|v| hmax(v) + br);
+            let mut cand = 0u64;
+            for (j, o) in self.objects.iter().enumerate() {
+                let apart = (0..3).any(|i| hi[i] < o.lo[i] || lo[i] > o.hi[i]);
+                cand |= (!apart as u64) << j;
+            }
+            let mut link_mask = 0u64;
+            let mut m = cand;
+            while m != 0 {
+                let j = m.trailing_zeros() as usize;
+                m &= m - 1;
+                if penetrates(&self.objects[j], b, br) != 0 {
+                    link_mask |= 1 << j;
+                }
+            }
+            if link_mask == 0 {
+                continue;
+            }
+            for ci in self.link_clusters[l].clone() {
+                self.place_cluster(l, ci);
+                let (c, cr) = (self.cluster_at[ci], self.cluster[ci].1);
+                let mut m = link_mask;
+                let mut cluster_mask = 0u64;
+                while m != 0 {
+                    let j = m.trailing_zeros() as usize;
+                    m &= m - 1;
+                    if penetrates(&self.objects[j], c, cr) != 0 {
+                        cluster_mask |= 1 << j;
+                    }
+                }
+                if cluster_mask == 0 {
+                    continue;
+                }
+                self.place_spheres(l, ci);
+                for s in self.cluster[ci].2.clone() {
+                    let (p, r) = (self.sphere_at[s], self.sphere[s].1);
+                    let mut m = cluster_mask;
+                    while m != 0 {
+                        let j = m.trailing_zeros() as usize;
+                        m &= m - 1;
+                        if penetrates(&self.objects[j], p, r) != 0 {
+                            return true;
+                        }
+                    }
+                }
+            }
+        }
+        false
+    }
+
+    #[inline(always)]
+    fn self_contact(&mut self) -> bool {
+        for k in 0..self.pairs.len() {
+            let (a, b) = self.pairs[k];
+            let (ra, rb) = (
+                self.bound[a].unwrap_or_default().1,
+                self.bound[b].unwrap_or_default().1,
+            );
+            let (ba, bb) = (self.bounds_of(a), self.bounds_of(b));
+            if overlap(ba, ra, bb, rb) == 0 {
+                continue;
+            }
+            for ca in self.link_clusters[a].clone() {
+                self.place_cluster(a, ca);
+                let (pa, cra) = (self.cluster_at[ca], self.cluster[ca].1);
+                if overlap(pa, cra, bb, rb) == 0 {
+                    continue;
+                }
+                for cb in self.link_clusters[b].clone() {
+                    self.place_cluster(b, cb);
+                    let (pb, crb) = (self.cluster_at[cb], self.cluster[cb].1);
+                    if overlap(pa, cra, pb, crb) == 0 {
+                        continue;
+                    }
+                    self.place_spheres(a, ca);
+                    self.place_spheres(b, cb);
+                    for i in self.cluster[ca].2.clone() {
+                        for j in self.cluster[cb].2.clone() {
+                            let (si, sj) = (self.sphere_at[i], self.sphere_at[j]);
+                            if overlap(si, self.sphere[i].1, sj, self.sphere[j].1) != 0 {
+                                return true;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        false
+    }
+
+    /// A link's bound centre in lanes (links that do not move are placed on first use).
+    #[inline(always)]
+    fn bounds_of(&mut self, l: usize) -> [F8; 3] {
+        if !self.moves[l] {
+            let (c, _) = self.bound[l].unwrap_or_default();
+            self.bounds[l] = self.poses[l].apply_const(c);
+        }
+        self.bounds[l]
+    }
+}
+
+/// Rotation by the lane angles `q` about the unit `axis` (Rodrigues).
+#[inline(always)]
+fn rotation(axis: [f32; 3], q: F8) -> Pose8 {
+    let (s, c) = q.sin_cos();
+    let one_c = F8::splat(1.0) - c;
+    let [x, y, z] = axis.map(F8::splat);
+    let (xs, ys, zs) = (x * s, y * s, z * s);
+    let (xc, yc, zc) = (x * one_c, y * one_c, z * one_c);
+    Pose8 {
+        r: [
+            x * xc + c,
+            x * yc - zs,
+            x * zc + ys,
+            y * xc + zs,
+            y * yc + c,
+            y * zc - xs,
+            z * xc - ys,
+            z * yc + xs,
+            z * zc + c,
+        ],
+        t: [F8::splat(0.0); 3],
+    }
+}
+
+/// Lanes where balls `(a, ra)` and `(b, rb)` overlap.
+#[inline(always)]
+fn overlap(a: [F8; 3], ra: f32, b: [F8; 3], rb: f32) -> u32 {
+    let (dx, dy, dz) = (a[0] - b[0], a[1] - b[1], a[2] - b[2]);
+    let r = ra + rb;
+    (dx * dx + dy * dy + dz * dz).lt_mask(F8::splat(r * r))
+}
+
+/// Lanes where the ball at `p` with radius `r` penetrates object `o` (the scalar checker's
+/// test: signed distance below `r`).
+#[inline(always)]
+fn penetrates(o: &Object8, p: [F8; 3], r: f32) -> u32 {
+    let d = [
+        p[0] - F8::splat(o.t[0]),
+        p[1] - F8::splat(o.t[1]),
+        p[2] - F8::splat(o.t[2]),
+    ];
+    let m = o.rot_t.map(F8::splat);
+    let x = m[0] * d[0] + m[1] * d[1] + m[2] * d[2];
+    let y = m[3] * d[0] + m[4] * d[1] + m[5] * d[2];
+    let z = m[6] * d[0] + m[7] * d[1] + m[8] * d[2];
+    let zero = F8::splat(0.0);
+    match o.kind {
+        ObjectKind::Sphere { r: big } => {
+            let reach = big + r;
+            (x * x + y * y + z * z).lt_mask(F8::splat(reach * reach))
+        }
+        ObjectKind::Box { h } => {
+            let qx = (x.abs() - F8::splat(h[0])).max(zero);
+            let qy = (y.abs() - F8::splat(h[1])).max(zero);
+            let qz = (z.abs() - F8::splat(h[2])).max(zero);
+            (qx * qx + qy * qy + qz * qz).lt_mask(F8::splat(r * r))
+        }
+        ObjectKind::Cylinder { r: big, hl } => {
+            let radial = ((x * x + y * y).sqrt() - F8::splat(big)).max(zero);
+            let axial = (z.abs() - F8::splat(hl)).max(zero);
+            (radial * radial + axial * axial).lt_mask(F8::splat(r * r))
+        }
+        ObjectKind::Capsule { r: big, hl } => {
+            let zc = z - z.max(F8::splat(-hl)).min(F8::splat(hl));
+            let reach = big + r;
+            (x * x + y * y + zc * zc).lt_mask(F8::splat(reach * reach))
+        }
+    }
+}
+
+#[inline(always)]
+fn hmin(v: F8) -> f32 {
+    v.0.iter().copied().fold(f32::INFINITY, f32::min)
+}
+
+#[inline(always)]
+fn hmax(v: F8) -> f32 {
+    v.0.iter().copied().fold(f32::NEG_INFINITY, f32::max)
+}
+
+fn has_avx2() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
