@@ -14,7 +14,7 @@
 //! uniform samples, mostly far from a tree that grows along narrow branches.
 
 use crate::robot::config_space::wrap_angle;
-use std::f64::consts::{PI, TAU};
+use std::f64::consts::TAU;
 
 /// Points per leaf before it splits.
 pub const LEAF: usize = 128;
@@ -37,8 +37,10 @@ pub struct NearestIndex {
     /// Per node: box corners, `dof` values each (continuous joints wrapped).
     lo: Vec<f64>,
     hi: Vec<f64>,
-    /// Per leaf: `dof × SLOTS` coordinates, joint-major.
+    /// Per leaf: `dof × SLOTS` coordinates, joint-major (exact, for splits and answers).
     coords: Vec<f64>,
+    /// The same in `f32`, scanned by queries (eight lanes per vector).
+    lanes: Vec<f32>,
     /// Per leaf: `SLOTS` point numbers.
     ids: Vec<u32>,
     /// Per leaf: points held.
@@ -46,6 +48,7 @@ pub struct NearestIndex {
     /// Query stack (node, lower bound of its distance²), kept between queries.
     stack: Vec<(u32, f64)>,
     target: Vec<f64>,
+    target32: Vec<f32>,
     avx2: bool,
 }
 
@@ -65,10 +68,12 @@ impl NearestIndex {
             lo: Vec::with_capacity(256 * dof),
             hi: Vec::with_capacity(256 * dof),
             coords: Vec::with_capacity(128 * SLOTS * dof),
+            lanes: Vec::with_capacity(128 * SLOTS * dof),
             ids: Vec::with_capacity(128 * SLOTS),
             len: Vec::with_capacity(128),
             stack: Vec::with_capacity(64),
             target: vec![0.0; dof],
+            target32: vec![0.0; dof],
             avx2: has_avx2(),
         }
     }
@@ -121,7 +126,12 @@ impl NearestIndex {
         stack.clear();
         stack.push((0, 0.0));
         let mut best = (f64::INFINITY, NONE);
-        let mut d2 = [0.0; SLOTS];
+        let mut best_slot = (0, 0);
+        let mut d2 = [0.0f32; SLOTS];
+        let mut q32 = std::mem::take(&mut self.target32);
+        for (l, &v) in q32.iter_mut().zip(q.iter()) {
+            *l = v as f32;
+        }
         while let Some((at, bound)) = stack.pop() {
             if bound >= best.0 {
                 continue;
@@ -130,10 +140,11 @@ impl NearestIndex {
             if a == NONE {
                 let leaf = b as usize;
                 let n = self.len[leaf] as usize;
-                self.leaf_distances(leaf, &q, &mut d2);
+                self.leaf_distances(leaf, &q32, &mut d2);
                 for (k, &d) in d2[..n].iter().enumerate() {
-                    if d < best.0 {
-                        best = (d, self.ids[leaf * SLOTS + k]);
+                    if (d as f64) < best.0 {
+                        best = (d as f64, self.ids[leaf * SLOTS + k]);
+                        best_slot = (leaf, k);
                     }
                 }
                 continue;
@@ -153,8 +164,11 @@ impl NearestIndex {
             }
         }
         self.stack = stack;
+        self.target32 = q32;
+        // The lanes chose; the exact coordinates give the distance.
+        let d2 = self.exact_dist2(best_slot.0, best_slot.1, &q);
         self.target = q;
-        Some((best.1, best.0))
+        Some((best.1, d2))
     }
 
     /// `p` with continuous joints wrapped into [-π, π).
@@ -196,6 +210,7 @@ impl NearestIndex {
             None => {
                 self.coords
                     .resize(self.coords.len() + SLOTS * self.dof, 0.0);
+                self.lanes.resize(self.lanes.len() + SLOTS * self.dof, 0.0);
                 self.ids.resize(self.ids.len() + SLOTS, NONE);
                 self.len.push(0);
                 self.len.len() - 1
@@ -208,9 +223,21 @@ impl NearestIndex {
         let base = leaf * SLOTS * self.dof;
         for (j, &v) in p.iter().enumerate() {
             self.coords[base + j * SLOTS + k] = v;
+            self.lanes[base + j * SLOTS + k] = v as f32;
         }
         self.ids[leaf * SLOTS + k] = id;
         self.len[leaf] += 1;
+    }
+
+    /// Squared distance from `q` (wrapped) to point `k` of `leaf`, in `f64`.
+    fn exact_dist2(&self, leaf: usize, k: usize, q: &[f64]) -> f64 {
+        (0..self.dof)
+            .map(|j| {
+                let d = q[j] - self.coord(leaf, j, k);
+                let d = if self.continuous[j] { wrap_angle(d) } else { d };
+                d * d
+            })
+            .sum()
     }
 
     fn coord(&self, leaf: usize, j: usize, k: usize) -> f64 {
@@ -275,8 +302,8 @@ impl NearestIndex {
 
     /// Squared distances from `q` (wrapped) to every point of `leaf` (all `SLOTS`).
     #[inline]
-    fn leaf_distances(&self, leaf: usize, q: &[f64], out: &mut [f64; SLOTS]) {
-        let coords = &self.coords[leaf * SLOTS * self.dof..][..SLOTS * self.dof];
+    fn leaf_distances(&self, leaf: usize, q: &[f32], out: &mut [f32; SLOTS]) {
+        let coords = &self.lanes[leaf * SLOTS * self.dof..][..SLOTS * self.dof];
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: the CPU has AVX2 (checked at construction).
@@ -307,10 +334,11 @@ impl NearestIndex {
 /// The distance kernel: joint by joint over all slots, so the inner loop runs across lanes.
 /// Continuous joints are wrapped values, so their difference needs one correction at most.
 #[inline(always)]
-fn leaf_distances(coords: &[f64], q: &[f64], continuous: &[bool], out: &mut [f64; SLOTS]) {
+fn leaf_distances(coords: &[f32], q: &[f32], continuous: &[bool], out: &mut [f32; SLOTS]) {
+    use std::f32::consts::{PI, TAU};
     *out = [0.0; SLOTS];
     for (j, &qj) in q.iter().enumerate() {
-        let column: &[f64; SLOTS] = coords[j * SLOTS..][..SLOTS].try_into().unwrap();
+        let column: &[f32; SLOTS] = coords[j * SLOTS..][..SLOTS].try_into().unwrap();
         if continuous[j] {
             for k in 0..SLOTS {
                 let d = qj - column[k];
@@ -335,10 +363,10 @@ fn leaf_distances(coords: &[f64], q: &[f64], continuous: &[bool], out: &mut [f64
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 unsafe fn leaf_distances_avx2(
-    coords: &[f64],
-    q: &[f64],
+    coords: &[f32],
+    q: &[f32],
     continuous: &[bool],
-    out: &mut [f64; SLOTS],
+    out: &mut [f32; SLOTS],
 ) {
     leaf_distances(coords, q, continuous, out)
 }

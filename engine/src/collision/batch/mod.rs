@@ -33,6 +33,8 @@ pub const MARGIN: f32 = 1e-4;
 #[derive(Clone, Copy)]
 enum Kind {
     Fixed,
+    /// About a coordinate axis (`0..3`), with its sign: the common case, a quarter of the work.
+    RevoluteAxis(usize, f32),
     Revolute([f32; 3]),
     Prismatic([f32; 3]),
 }
@@ -57,7 +59,10 @@ struct Object8 {
 /// Eight-lane collision checks for one robot in one environment (see the module docs).
 pub struct BatchChecker {
     dof: usize,
-    /// Per link: parent, origin (row-major rotation, translation), motion, variable.
+    /// Per link: the frame its pose is computed in (its own for a joint or the root, else its
+    /// nearest such ancestor's), that frame's parent frame, the joint origin in it (row-major
+    /// rotation, translation), motion, variable.
+    frame: Vec<usize>,
     parent: Vec<Option<usize>>,
     origin: Vec<([f32; 9], [f32; 3])>,
     kind: Vec<Kind>,
@@ -100,11 +105,26 @@ impl BatchChecker {
         let links = robot.links();
         let model = robot.spheres();
         let f = |v: f64| v as f32;
+        // Links on fixed joints share the frame of their nearest moving ancestor (or the
+        // root): their spheres are placed in that frame once, so FK runs over joints only.
+        let mut frame = vec![0usize; links.len()];
+        let mut to_frame = vec![crate::robot::fk::Frame::identity(); links.len()];
         let mut origin = Vec::new();
         let mut kind = Vec::new();
         let mut variable = Vec::new();
         for (i, link) in links.iter().enumerate() {
-            let o = &robot.origin_frames[i];
+            // The joint frame in the frame of the parent's pose.
+            let o = match link.parent {
+                Some(p) => to_frame[p] * robot.origin_frames[i],
+                None => robot.origin_frames[i],
+            };
+            match (&link.motion, link.parent) {
+                (Motion::Fixed, Some(p)) => {
+                    frame[i] = frame[p];
+                    to_frame[i] = o;
+                }
+                _ => frame[i] = i,
+            }
             let m = o.rotation.matrix();
             let r = std::array::from_fn(|k| f(m[(k / 3, k % 3)]));
             let t = o.translation.vector;
@@ -112,28 +132,53 @@ impl BatchChecker {
             let axis = |a: &nalgebra::Unit<nalgebra::Vector3<f64>>| [f(a.x), f(a.y), f(a.z)];
             let (k, v) = match &link.motion {
                 Motion::Fixed => (Kind::Fixed, 0),
-                Motion::Revolute { axis: a, variable } => (Kind::Revolute(axis(a)), *variable),
+                Motion::Revolute { axis: a, variable } => {
+                    let along = (0..3).find(|&k| (a[k].abs() - 1.0).abs() < 1e-12);
+                    match along {
+                        Some(k) => (Kind::RevoluteAxis(k, a[k].signum() as f32), *variable),
+                        None => (Kind::Revolute(axis(a)), *variable),
+                    }
+                }
                 Motion::Prismatic { axis: a, variable } => (Kind::Prismatic(axis(a)), *variable),
             };
             kind.push(k);
             variable.push(v);
         }
+        // Sphere-model points in their link's frame of computation.
+        let place = |l: usize, c: [f64; 3]| -> [f32; 3] {
+            let w = to_frame[l] * nalgebra::Point3::from(c);
+            [f(w.x), f(w.y), f(w.z)]
+        };
         let moves: Vec<bool> = (0..links.len()).map(|l| robot.link_moves(l)).collect();
         let bound: Vec<_> = model
             .bounds
             .iter()
-            .map(|b| b.map(|(c, r)| (c.map(f), f(r) + MARGIN)))
+            .enumerate()
+            .map(|(l, b)| b.map(|(c, r)| (place(l, c), f(r) + MARGIN)))
             .collect();
+        let mut owner = vec![0usize; model.clusters.len()];
+        for (l, range) in model.link_clusters.iter().enumerate() {
+            for ci in range.clone() {
+                owner[ci] = l;
+            }
+        }
         let moving = (0..links.len())
             .filter(|&l| moves[l] && bound[l].is_some())
             .collect();
         let cluster: Vec<_> = model
             .clusters
             .iter()
-            .map(|c| (c.center.map(f), f(c.radius) + MARGIN, c.range.clone()))
+            .enumerate()
+            .map(|(ci, c)| {
+                let l = owner[ci];
+                (place(l, c.center), f(c.radius) + MARGIN, c.range.clone())
+            })
             .collect();
         let sphere: Vec<_> = (0..model.len())
-            .map(|s| (model.center[s].map(f), f(model.radius[s]) + MARGIN))
+            .map(|s| {
+                let l = model.link[s] as usize;
+                (place(l, model.center[s]), f(model.radius[s]) + MARGIN)
+            })
             .collect();
         let objects = env
             .placed()
@@ -172,7 +217,8 @@ impl BatchChecker {
         let n_links = links.len();
         let mut sut = BatchChecker {
             dof: robot.dof(),
-            parent: links.iter().map(|l| l.parent).collect(),
+            parent: links.iter().map(|l| l.parent.map(|p| frame[p])).collect(),
+            frame,
             origin,
             kind,
             variable,
@@ -195,9 +241,9 @@ impl BatchChecker {
             lanes: vec![F8::default(); robot.dof()],
             avx2: has_avx2(),
         };
-        // Links that never move have the same pose in every batch.
+        // Frames that never move have the same pose in every batch.
         for l in 0..n_links {
-            if !sut.moves[l] {
+            if !sut.moves[l] && sut.frame[l] == l {
                 sut.fk_link(l);
             }
         }
@@ -304,14 +350,14 @@ impl BatchChecker {
             self.epoch = 1;
         }
         for l in 0..self.parent.len() {
-            if self.moves[l] {
+            if self.moves[l] && self.frame[l] == l {
                 self.fk_link(l);
             }
         }
         for k in 0..self.moving.len() {
             let l = self.moving[k];
             let (c, _) = self.bound[l].unwrap_or_default();
-            self.bounds[l] = self.poses[l].apply_const(c);
+            self.bounds[l] = self.poses[self.frame[l]].apply_const(c);
         }
         self.env_contact() || self.self_contact()
     }
@@ -322,6 +368,9 @@ impl BatchChecker {
         let origin = Pose8::splat(r, t);
         let local = match self.kind[l] {
             Kind::Fixed => origin,
+            Kind::RevoluteAxis(k, sign) => {
+                turn_about_axis(&origin, k, sign, self.lanes[self.variable[l]])
+            }
             Kind::Revolute(axis) => origin.compose(&rotation(axis, self.lanes[self.variable[l]])),
             Kind::Prismatic(axis) => {
                 let v = self.lanes[self.variable[l]];
@@ -340,7 +389,7 @@ impl BatchChecker {
     fn place_cluster(&mut self, l: usize, ci: usize) {
         if self.cluster_stamp[ci] != self.epoch {
             self.cluster_stamp[ci] = self.epoch;
-            self.cluster_at[ci] = self.poses[l].apply_const(self.cluster[ci].0);
+            self.cluster_at[ci] = self.poses[self.frame[l]].apply_const(self.cluster[ci].0);
         }
     }
 
@@ -348,8 +397,9 @@ impl BatchChecker {
     fn place_spheres(&mut self, l: usize, ci: usize) {
         if self.sphere_stamp[ci] != self.epoch {
             self.sphere_stamp[ci] = self.epoch;
+            let pose = self.poses[self.frame[l]];
             for s in self.cluster[ci].2.clone() {
-                self.sphere_at[s] = self.poses[l].apply_const(self.sphere[s].0);
+                self.sphere_at[s] = pose.apply_const(self.sphere[s].0);
             }
         }
     }
@@ -460,10 +510,26 @@ impl BatchChecker {
     fn bounds_of(&mut self, l: usize) -> [F8; 3] {
         if !self.moves[l] {
             let (c, _) = self.bound[l].unwrap_or_default();
-            self.bounds[l] = self.poses[l].apply_const(c);
+            self.bounds[l] = self.poses[self.frame[l]].apply_const(c);
         }
         self.bounds[l]
     }
+}
+
+/// `origin` turned by the lane angles `q` about its coordinate axis `k` (times `sign`): only
+/// the two other columns change.
+#[inline(always)]
+fn turn_about_axis(origin: &Pose8, k: usize, sign: f32, q: F8) -> Pose8 {
+    let (s, c) = q.sin_cos();
+    let s = s * F8::splat(sign);
+    let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+    let mut out = *origin;
+    for row in 0..3 {
+        let (a, b) = (origin.r[row * 3 + i], origin.r[row * 3 + j]);
+        out.r[row * 3 + i] = a * c + b * s;
+        out.r[row * 3 + j] = b * c - a * s;
+    }
+    out
 }
 
 /// Rotation by the lane angles `q` about the unit `axis` (Rodrigues).
