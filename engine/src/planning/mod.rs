@@ -80,7 +80,7 @@ pub struct PlannerParams {
 impl Default for PlannerParams {
     fn default() -> Self {
         PlannerParams {
-            range: 0.5,
+            range: 0.75,
             resolution: DEFAULT_RESOLUTION,
             time_limit: Duration::from_secs(10),
             max_iterations: 5_000_000,
