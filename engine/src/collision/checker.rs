@@ -135,7 +135,9 @@ impl<'a> SphereChecker<'a> {
         sut.static_contact = super::exact::ExactChecker::new(robot, env)
             .static_contact()
             .cloned();
-        sut.moving_links = moving;
+        // Tip first: in clutter the hand and forearm touch things first, so a colliding state
+        // is found after fewer links.
+        sut.moving_links = moving.into_iter().rev().collect();
         sut.moving_pairs = moving_pairs;
         sut
     }

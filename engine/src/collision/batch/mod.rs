@@ -162,7 +162,9 @@ impl BatchChecker {
                 owner[ci] = l;
             }
         }
+        // Tip first, as the scalar checker.
         let moving = (0..links.len())
+            .rev()
             .filter(|&l| moves[l] && bound[l].is_some())
             .collect();
         let cluster: Vec<_> = model
