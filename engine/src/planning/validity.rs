@@ -27,6 +27,7 @@ pub struct Validity<'a> {
     exact_radius: f64,
     resolution: f64,
     scratch: Vec<f64>,
+    state: Vec<f64>,
     motions: u64,
     fallbacks: u64,
 }
@@ -49,6 +50,7 @@ impl<'a> Validity<'a> {
             exact_radius,
             resolution: resolution.max(1e-6),
             scratch: vec![0.0; robot.dof()],
+            state: vec![0.0; robot.dof()],
             motions: 0,
             fallbacks: 0,
         }
@@ -115,19 +117,28 @@ impl<'a> Validity<'a> {
     }
 
     /// True when the straight motion from `a` to `b` is free at the resolution (ends assumed
-    /// valid). The states go eight at a time through the batch checker; only an edge it
+    /// valid). The states go eight at a time through the batch checker; only a batch it
     /// flags is decided state by state (spheres, then the exact fallback near anchors), so
     /// the verdict is the scalar one.
     pub fn motion_valid(&mut self, a: &[f64], b: &[f64]) -> bool {
         self.motions += 1;
         let (robot, resolution) = (self.robot, self.resolution);
         let mut q = std::mem::take(&mut self.scratch);
-        let free_in_lanes = match self.batch.as_mut() {
-            Some(batch) => !batch.motion_may_collide(robot, resolution, a, b, &mut q),
-            None => false,
+        let ok = match self.batch.take() {
+            Some(mut batch) => {
+                let mut state = std::mem::take(&mut self.state);
+                let ok = batch.motion_free(robot, resolution, a, b, &mut q, |ks, n| {
+                    ks.iter().all(|&k| {
+                        robot.interpolate(a, b, k as f64 / n as f64, &mut state);
+                        self.is_valid(&state)
+                    })
+                });
+                self.state = state;
+                self.batch = Some(batch);
+                ok
+            }
+            None => bisect_motion(robot, resolution, a, b, &mut q, |q| self.is_valid(q)),
         };
-        let ok =
-            free_in_lanes || bisect_motion(robot, resolution, a, b, &mut q, |q| self.is_valid(q));
         self.scratch = q;
         ok
     }

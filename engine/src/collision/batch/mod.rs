@@ -264,11 +264,28 @@ impl BatchChecker {
         b: &[f64],
         scratch: &mut [f64],
     ) -> bool {
+        !self.motion_free(robot, resolution, a, b, scratch, |_, _| false)
+    }
+
+    /// True when every state strictly between `a` and `b` (at `resolution`) is free: the
+    /// states go eight at a time, coarse to fine (bisection order), and a batch the lanes flag
+    /// is handed to `decide` (its state numbers `k`, of `n` steps: `a + k/n (b − a)`, the
+    /// last repeated to fill the batch), which says whether they are all free after all; the
+    /// first batch it does not clear ends the check. So a colliding edge costs the batches up
+    /// to the first flagged one and at most eight decisions.
+    pub fn motion_free(
+        &mut self,
+        robot: &Robot,
+        resolution: f64,
+        a: &[f64],
+        b: &[f64],
+        scratch: &mut [f64],
+        mut decide: impl FnMut(&[usize; LANES], usize) -> bool,
+    ) -> bool {
         let n = motion_steps(robot, a, b, resolution);
         if n < 2 {
-            return false;
+            return true;
         }
-        // Bisection order, eight states per batch (the last batch repeats its last state).
         let mut batch = [0usize; LANES];
         let mut filled = 0;
         let mut step = 1usize << (usize::BITS - 1 - (n - 1).leading_zeros());
@@ -278,8 +295,10 @@ impl BatchChecker {
                 batch[filled] = k;
                 filled += 1;
                 if filled == LANES {
-                    if self.states_may_collide(robot, a, b, n, &batch, scratch) {
-                        return true;
+                    if self.states_may_collide(robot, a, b, n, &batch, scratch)
+                        && !decide(&batch, n)
+                    {
+                        return false;
                     }
                     filled = 0;
                 }
@@ -292,9 +311,11 @@ impl BatchChecker {
             for i in filled..LANES {
                 batch[i] = batch[filled - 1];
             }
-            return self.states_may_collide(robot, a, b, n, &batch, scratch);
+            if self.states_may_collide(robot, a, b, n, &batch, scratch) && !decide(&batch, n) {
+                return false;
+            }
         }
-        false
+        true
     }
 
     fn states_may_collide(
