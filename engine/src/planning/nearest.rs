@@ -16,13 +16,17 @@
 use crate::robot::config_space::wrap_angle;
 use std::f64::consts::TAU;
 
-/// Points per leaf before it splits.
-pub const LEAF: usize = 128;
+/// Points per leaf before it splits (one less than a multiple of eight, so a leaf's slots
+/// fill whole vectors).
+pub const LEAF: usize = 127;
 
 /// Slots per leaf: one more than [`LEAF`], for the point that triggers the split.
 const SLOTS: usize = LEAF + 1;
 
 const NONE: u32 = u32::MAX;
+
+/// Coordinate of an empty slot: its distance to any query is huge but finite in `f32`.
+const EMPTY: f32 = 1e15;
 
 /// The index (see the module docs).
 pub struct NearestIndex {
@@ -140,7 +144,10 @@ impl NearestIndex {
             if a == NONE {
                 let leaf = b as usize;
                 let n = self.len[leaf] as usize;
-                self.leaf_distances(leaf, &q32, &mut d2);
+                let nearest_here = self.leaf_distances(leaf, &q32, &mut d2);
+                if nearest_here as f64 >= best.0 {
+                    continue;
+                }
                 for (k, &d) in d2[..n].iter().enumerate() {
                     if (d as f64) < best.0 {
                         best = (d as f64, self.ids[leaf * SLOTS + k]);
@@ -205,12 +212,14 @@ impl NearestIndex {
         match slot {
             Some(l) => {
                 self.len[l] = 0;
+                self.lanes[l * SLOTS * self.dof..][..SLOTS * self.dof].fill(EMPTY);
                 l
             }
             None => {
                 self.coords
                     .resize(self.coords.len() + SLOTS * self.dof, 0.0);
-                self.lanes.resize(self.lanes.len() + SLOTS * self.dof, 0.0);
+                self.lanes
+                    .resize(self.lanes.len() + SLOTS * self.dof, EMPTY);
                 self.ids.resize(self.ids.len() + SLOTS, NONE);
                 self.len.push(0);
                 self.len.len() - 1
@@ -302,15 +311,14 @@ impl NearestIndex {
 
     /// Squared distances from `q` (wrapped) to every point of `leaf` (all `SLOTS`).
     #[inline]
-    fn leaf_distances(&self, leaf: usize, q: &[f32], out: &mut [f32; SLOTS]) {
+    fn leaf_distances(&self, leaf: usize, q: &[f32], out: &mut [f32; SLOTS]) -> f32 {
         let coords = &self.lanes[leaf * SLOTS * self.dof..][..SLOTS * self.dof];
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: the CPU has AVX2 (checked at construction).
-            unsafe { leaf_distances_avx2(coords, q, &self.continuous, out) };
-            return;
+            return unsafe { leaf_distances_avx2(coords, q, &self.continuous, out) };
         }
-        leaf_distances(coords, q, &self.continuous, out);
+        leaf_distances(coords, q, &self.continuous, out)
     }
 
     /// Squared distance from `p` (wrapped) to node `at`'s box. Branch-free over the joints:
@@ -331,10 +339,11 @@ impl NearestIndex {
     }
 }
 
-/// The distance kernel: joint by joint over all slots, so the inner loop runs across lanes.
+/// The distance kernel: joint by joint over all slots, so the inner loop runs across lanes;
+/// returns the smallest distance (empty slots hold [`EMPTY`], far from everything).
 /// Continuous joints are wrapped values, so their difference needs one correction at most.
 #[inline(always)]
-fn leaf_distances(coords: &[f32], q: &[f32], continuous: &[bool], out: &mut [f32; SLOTS]) {
+fn leaf_distances(coords: &[f32], q: &[f32], continuous: &[bool], out: &mut [f32; SLOTS]) -> f32 {
     use std::f32::consts::{PI, TAU};
     *out = [0.0; SLOTS];
     for (j, &qj) in q.iter().enumerate() {
@@ -358,6 +367,17 @@ fn leaf_distances(coords: &[f32], q: &[f32], continuous: &[bool], out: &mut [f32
             }
         }
     }
+    let mut least = [f32::INFINITY; 8];
+    for chunk in out.chunks_exact(8) {
+        for k in 0..8 {
+            least[k] = if chunk[k] < least[k] {
+                chunk[k]
+            } else {
+                least[k]
+            };
+        }
+    }
+    least.into_iter().fold(f32::INFINITY, f32::min)
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -367,7 +387,7 @@ unsafe fn leaf_distances_avx2(
     q: &[f32],
     continuous: &[bool],
     out: &mut [f32; SLOTS],
-) {
+) -> f32 {
     leaf_distances(coords, q, continuous, out)
 }
 
