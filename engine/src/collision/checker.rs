@@ -5,7 +5,7 @@
 //! Per link, the link's bounding sphere is tested first (broad phase); only the objects it
 //! touches are tested against the link's spheres. Nothing here allocates after construction.
 
-use crate::robot::fk::Frame;
+use crate::robot::fk::{Frame, JointFrames};
 use crate::robot::Robot;
 use crate::world::Environment;
 use nalgebra::Point3;
@@ -65,6 +65,11 @@ pub struct SphereChecker<'a> {
     robot: &'a Robot,
     env: &'a Environment,
     resolution: f64,
+    /// Frames of joint links (others ride in them) and the sphere model placed in them.
+    joints: JointFrames,
+    bound_at: Vec<[f64; 3]>,
+    cluster_at: Vec<[f64; 3]>,
+    sphere_at: Vec<[f64; 3]>,
     poses: Vec<Frame>,
     /// World positions, computed lazily per configuration: link bounds eagerly, a link's
     /// cluster centres when first needed (`link_stamp`), a cluster's spheres likewise
@@ -93,10 +98,29 @@ impl<'a> SphereChecker<'a> {
     /// A checker with the default edge resolution.
     pub fn new(robot: &'a Robot, env: &'a Environment) -> Self {
         let n_links = robot.links().len();
+        let model = robot.spheres();
+        let joints = JointFrames::new(robot);
+        let bound_at = (0..n_links)
+            .map(|l| model.bounds[l].map_or([0.0; 3], |(c, _)| joints.place(l, c)))
+            .collect();
+        let mut cluster_at = vec![[0.0; 3]; model.clusters.len()];
+        let mut sphere_at = vec![[0.0; 3]; model.len()];
+        for l in 0..n_links {
+            for ci in model.link_clusters[l].clone() {
+                cluster_at[ci] = joints.place(l, model.clusters[ci].center);
+                for s in model.clusters[ci].range.clone() {
+                    sphere_at[s] = joints.place(l, model.center[s]);
+                }
+            }
+        }
         let mut sut = SphereChecker {
             robot,
             env,
             resolution: DEFAULT_RESOLUTION,
+            joints,
+            bound_at,
+            cluster_at,
+            sphere_at,
             poses: vec![Frame::identity(); n_links],
             bounds: vec![[0.0; 3]; n_links],
             cluster_centers: vec![[0.0; 3]; robot.spheres().clusters.len()],
@@ -121,7 +145,7 @@ impl<'a> SphereChecker<'a> {
             .filter(|&l| robot.spheres().bounds[l].is_some())
             .partition(|&l| robot.link_moves(l));
         let (moving_pairs, _) = robot.partition_pairs();
-        robot.forward_kinematics_frames(&robot.middle(), &mut sut.poses);
+        sut.joints.compute(robot, &robot.middle(), &mut sut.poses);
         sut.epoch = 1;
         for &l in &fixed {
             sut.place_bound(l);
@@ -171,11 +195,6 @@ impl<'a> SphereChecker<'a> {
     /// Work done so far.
     pub fn stats(&self) -> CheckStats {
         self.stats
-    }
-
-    /// Link frames of the last configuration checked.
-    pub fn link_frames(&self) -> &[Frame] {
-        &self.poses
     }
 
     /// True when `q` is free of environment and self-collision. `q` must have the robot's DOF
@@ -251,7 +270,7 @@ impl<'a> SphereChecker<'a> {
     /// FK and world bounds of the moving links; clusters and spheres are placed on demand.
     #[inline]
     fn update(&mut self, q: &[f64]) {
-        self.robot.forward_kinematics_frames(q, &mut self.poses);
+        self.joints.compute(self.robot, q, &mut self.poses);
         self.epoch += 1;
         if self.epoch == STATIC {
             // Wrapped: forget every stamp of the moving links.
@@ -270,8 +289,8 @@ impl<'a> SphereChecker<'a> {
 
     #[inline]
     fn place_bound(&mut self, li: usize) {
-        if let Some((c, _)) = self.robot.spheres().bounds[li] {
-            let w = self.poses[li] * Point3::from(c);
+        if self.robot.spheres().bounds[li].is_some() {
+            let w = self.poses[self.joints.frame[li]] * Point3::from(self.bound_at[li]);
             self.bounds[li] = [w.x, w.y, w.z];
         }
     }
@@ -285,9 +304,9 @@ impl<'a> SphereChecker<'a> {
         }
         self.link_stamp[li] = self.epoch;
         let model = self.robot.spheres();
-        let pose = &self.poses[li];
+        let pose = &self.poses[self.joints.frame[li]];
         for ci in model.link_clusters[li].clone() {
-            let w = pose * Point3::from(model.clusters[ci].center);
+            let w = pose * Point3::from(self.cluster_at[ci]);
             self.cluster_centers[ci] = [w.x, w.y, w.z];
         }
     }
@@ -301,9 +320,9 @@ impl<'a> SphereChecker<'a> {
         }
         self.cluster_stamp[ci] = self.epoch;
         let model = self.robot.spheres();
-        let pose = &self.poses[li];
+        let pose = &self.poses[self.joints.frame[li]];
         for s in model.clusters[ci].range.clone() {
-            let w = pose * Point3::from(model.center[s]);
+            let w = pose * Point3::from(self.sphere_at[s]);
             (self.xs[s], self.ys[s], self.zs[s]) = (w.x, w.y, w.z);
         }
     }

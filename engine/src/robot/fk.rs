@@ -111,3 +111,81 @@ impl Robot {
         Ok(out)
     }
 }
+
+/// Forward kinematics over joints only: links on fixed joints ride in the frame of their
+/// nearest ancestor on a moving joint (or the root), so only those frames are computed. The
+/// checkers place a fixed link's spheres in that frame once ([`JointFrames::to_frame`]).
+#[derive(Debug, Clone)]
+pub struct JointFrames {
+    /// Per link: the link whose frame it rides in (itself for a joint link or the root).
+    pub frame: Vec<usize>,
+    /// Per link: its pose in that frame (identity for joint links and the root).
+    pub to_frame: Vec<Frame>,
+    /// Per link: its joint origin in the frame of its parent's frame link.
+    pub origin: Vec<Frame>,
+    /// Joint links and roots, parents first: the frames computed per configuration.
+    pub joints: Vec<usize>,
+}
+
+impl JointFrames {
+    /// The frames of `robot`.
+    pub fn new(robot: &Robot) -> Self {
+        let n = robot.links.len();
+        let mut frame = vec![0; n];
+        let mut to_frame = vec![Frame::identity(); n];
+        let mut origin = Vec::with_capacity(n);
+        let mut joints = Vec::new();
+        for (i, link) in robot.links.iter().enumerate() {
+            let o = match link.parent {
+                Some(p) => to_frame[p] * robot.origin_frames[i],
+                None => robot.origin_frames[i],
+            };
+            match (&link.motion, link.parent) {
+                (Motion::Fixed, Some(p)) => {
+                    frame[i] = frame[p];
+                    to_frame[i] = o;
+                }
+                _ => {
+                    frame[i] = i;
+                    joints.push(i);
+                }
+            }
+            origin.push(o);
+        }
+        JointFrames {
+            frame,
+            to_frame,
+            origin,
+            joints,
+        }
+    }
+
+    /// Writes the base-frame pose of every joint link and root for `q` into `frames` (other
+    /// slots untouched).
+    #[inline]
+    pub fn compute(&self, robot: &Robot, q: &[f64], frames: &mut [Frame]) {
+        for &i in &self.joints {
+            let link = &robot.links[i];
+            let origin = &self.origin[i];
+            let local = match link.motion {
+                Motion::Fixed => *origin,
+                Motion::Revolute { axis, variable } => {
+                    origin * Rotation3::from_axis_angle(&axis, q[variable])
+                }
+                Motion::Prismatic { axis, variable } => {
+                    origin * Translation3::from(axis.into_inner() * q[variable])
+                }
+            };
+            frames[i] = match link.parent {
+                None => local,
+                Some(p) => frames[self.frame[p]] * local,
+            };
+        }
+    }
+
+    /// Point `c` of link `l`'s frame in the frame it rides in.
+    pub fn place(&self, l: usize, c: [f64; 3]) -> [f64; 3] {
+        let w = self.to_frame[l] * nalgebra::Point3::from(c);
+        [w.x, w.y, w.z]
+    }
+}

@@ -23,6 +23,7 @@ pub mod lanes;
 
 use crate::collision::checker::motion_steps;
 use crate::collision::Shape;
+use crate::robot::fk::JointFrames;
 use crate::robot::{Motion, Robot};
 use crate::world::Environment;
 use lanes::{Pose8, F8, LANES};
@@ -105,26 +106,15 @@ impl BatchChecker {
         let links = robot.links();
         let model = robot.spheres();
         let f = |v: f64| v as f32;
-        // Links on fixed joints share the frame of their nearest moving ancestor (or the
+        // Links on fixed joints ride in the frame of their nearest moving ancestor (or the
         // root): their spheres are placed in that frame once, so FK runs over joints only.
-        let mut frame = vec![0usize; links.len()];
-        let mut to_frame = vec![crate::robot::fk::Frame::identity(); links.len()];
+        let joints = JointFrames::new(robot);
+        let frame = joints.frame.clone();
         let mut origin = Vec::new();
         let mut kind = Vec::new();
         let mut variable = Vec::new();
         for (i, link) in links.iter().enumerate() {
-            // The joint frame in the frame of the parent's pose.
-            let o = match link.parent {
-                Some(p) => to_frame[p] * robot.origin_frames[i],
-                None => robot.origin_frames[i],
-            };
-            match (&link.motion, link.parent) {
-                (Motion::Fixed, Some(p)) => {
-                    frame[i] = frame[p];
-                    to_frame[i] = o;
-                }
-                _ => frame[i] = i,
-            }
+            let o = joints.origin[i];
             let m = o.rotation.matrix();
             let r = std::array::from_fn(|k| f(m[(k / 3, k % 3)]));
             let t = o.translation.vector;
@@ -144,11 +134,8 @@ impl BatchChecker {
             kind.push(k);
             variable.push(v);
         }
-        // Sphere-model points in their link's frame of computation.
-        let place = |l: usize, c: [f64; 3]| -> [f32; 3] {
-            let w = to_frame[l] * nalgebra::Point3::from(c);
-            [f(w.x), f(w.y), f(w.z)]
-        };
+        // Sphere-model points in the frame their link rides in.
+        let place = |l: usize, c: [f64; 3]| -> [f32; 3] { joints.place(l, c).map(f) };
         let moves: Vec<bool> = (0..links.len()).map(|l| robot.link_moves(l)).collect();
         let bound: Vec<_> = model
             .bounds
