@@ -8,6 +8,20 @@ use nalgebra::{IsometryMatrix3, Rotation3, Translation3, UnitQuaternion};
 /// than quaternions for transforming many points.
 pub type Frame = IsometryMatrix3<f64>;
 
+/// The frame of `link` in its parent's frame: the joint `origin` moved by the joint's value.
+#[inline]
+fn joint_frame(link: &super::Link, origin: &Frame, q: &[f64]) -> Frame {
+    match link.motion {
+        Motion::Fixed => *origin,
+        Motion::Revolute { axis, variable } => {
+            origin * Rotation3::from_axis_angle(&axis, q[variable])
+        }
+        Motion::Prismatic { axis, variable } => {
+            origin * Translation3::from(axis.into_inner() * q[variable])
+        }
+    }
+}
+
 impl Robot {
     /// Writes the base-frame pose of every link for configuration `q` into `poses`
     /// (indexed like [`Robot::links`]). No checks, no allocation: the planner's inner loop.
@@ -41,16 +55,7 @@ impl Robot {
         debug_assert_eq!(q.len(), self.dof());
         debug_assert_eq!(frames.len(), self.links.len());
         for (i, link) in self.links.iter().enumerate() {
-            let origin = &self.origin_frames[i];
-            let local = match link.motion {
-                Motion::Fixed => *origin,
-                Motion::Revolute { axis, variable } => {
-                    origin * Rotation3::from_axis_angle(&axis, q[variable])
-                }
-                Motion::Prismatic { axis, variable } => {
-                    origin * Translation3::from(axis.into_inner() * q[variable])
-                }
-            };
+            let local = joint_frame(link, &self.origin_frames[i], q);
             frames[i] = match link.parent {
                 None => local,
                 Some(p) => frames[p] * local,
@@ -166,16 +171,7 @@ impl JointFrames {
     pub fn compute(&self, robot: &Robot, q: &[f64], frames: &mut [Frame]) {
         for &i in &self.joints {
             let link = &robot.links[i];
-            let origin = &self.origin[i];
-            let local = match link.motion {
-                Motion::Fixed => *origin,
-                Motion::Revolute { axis, variable } => {
-                    origin * Rotation3::from_axis_angle(&axis, q[variable])
-                }
-                Motion::Prismatic { axis, variable } => {
-                    origin * Translation3::from(axis.into_inner() * q[variable])
-                }
-            };
+            let local = joint_frame(link, &self.origin[i], q);
             frames[i] = match link.parent {
                 None => local,
                 Some(p) => frames[self.frame[p]] * local,

@@ -431,43 +431,22 @@ impl BatchChecker {
                 let apart = (0..3).any(|i| hi[i] < o.lo[i] || lo[i] > o.hi[i]);
                 cand |= (!apart as u64) << j;
             }
-            let mut link_mask = 0u64;
-            let mut m = cand;
-            while m != 0 {
-                let j = m.trailing_zeros() as usize;
-                m &= m - 1;
-                if penetrates(&self.objects[j], b, br) != 0 {
-                    link_mask |= 1 << j;
-                }
-            }
+            let link_mask = penetrated(&self.objects, cand, b, br);
             if link_mask == 0 {
                 continue;
             }
             for ci in self.link_clusters[l].clone() {
                 self.place_cluster(l, ci);
                 let (c, cr) = (self.cluster_at[ci], self.cluster[ci].1);
-                let mut m = link_mask;
-                let mut cluster_mask = 0u64;
-                while m != 0 {
-                    let j = m.trailing_zeros() as usize;
-                    m &= m - 1;
-                    if penetrates(&self.objects[j], c, cr) != 0 {
-                        cluster_mask |= 1 << j;
-                    }
-                }
+                let cluster_mask = penetrated(&self.objects, link_mask, c, cr);
                 if cluster_mask == 0 {
                     continue;
                 }
                 self.place_spheres(l, ci);
                 for s in self.cluster[ci].2.clone() {
                     let (p, r) = (self.sphere_at[s], self.sphere[s].1);
-                    let mut m = cluster_mask;
-                    while m != 0 {
-                        let j = m.trailing_zeros() as usize;
-                        m &= m - 1;
-                        if penetrates(&self.objects[j], p, r) != 0 {
-                            return true;
-                        }
+                    if penetrated(&self.objects, cluster_mask, p, r) != 0 {
+                        return true;
                     }
                 }
             }
@@ -572,6 +551,21 @@ fn overlap(a: [F8; 3], ra: f32, b: [F8; 3], rb: f32) -> u32 {
     let (dx, dy, dz) = (a[0] - b[0], a[1] - b[1], a[2] - b[2]);
     let r = ra + rb;
     (dx * dx + dy * dy + dz * dz).lt_mask(F8::splat(r * r))
+}
+
+/// The objects of `mask` that the ball at `p` with radius `r` penetrates in some lane.
+#[inline(always)]
+fn penetrated(objects: &[Object8], mask: u64, p: [F8; 3], r: f32) -> u64 {
+    let mut out = 0u64;
+    let mut m = mask;
+    while m != 0 {
+        let j = m.trailing_zeros() as usize;
+        m &= m - 1;
+        if penetrates(&objects[j], p, r) != 0 {
+            out |= 1 << j;
+        }
+    }
+    out
 }
 
 /// Lanes where the ball at `p` with radius `r` penetrates object `o` (the scalar checker's
