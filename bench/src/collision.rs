@@ -189,6 +189,19 @@ struct LaneFigures {
     states_per_edge: f64,
 }
 
+impl LaneFigures {
+    /// Nothing measured.
+    fn none() -> Self {
+        LaneFigures {
+            batch_ns: f64::NAN,
+            free_ns: f64::NAN,
+            edge_batch_ns: f64::NAN,
+            edge_scalar_ns: f64::NAN,
+            states_per_edge: f64::NAN,
+        }
+    }
+}
+
 fn lane_figures(
     robot: &ember_engine::robot::Robot,
     env: &ember_engine::world::Environment,
@@ -210,6 +223,10 @@ fn lane_figures(
         })
         .collect();
     let n_free = groups.len() * 8;
+    if n_free == 0 {
+        // Nothing free in this scene for this robot (its base in the shelf): nothing to time.
+        return LaneFigures::none();
+    }
     let time = |f: &mut dyn FnMut()| -> f64 {
         let mut v: Vec<f64> = (0..batches.max(1))
             .map(|_| {
@@ -245,7 +262,14 @@ fn lane_figures(
         .map(|(a, b)| motion_steps(robot, a, b, DEFAULT_RESOLUTION).saturating_sub(1))
         .sum();
     let mut scratch = vec![0.0; dof];
-    let n_edges = edges.len().max(1) as f64;
+    if edges.is_empty() {
+        return LaneFigures {
+            batch_ns,
+            free_ns,
+            ..LaneFigures::none()
+        };
+    }
+    let n_edges = edges.len() as f64;
     let edge_batch_ns = time(&mut || {
         for (a, b) in &edges {
             black_box(batch.motion_may_collide(robot, DEFAULT_RESOLUTION, a, b, &mut scratch));
