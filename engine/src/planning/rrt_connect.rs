@@ -195,8 +195,7 @@ impl Search<'_, '_, '_> {
                 .interpolate(near_q, target, self.range / d, &mut self.scratch);
         }
         let t = ticks();
-        let ok = self.checker.is_valid(&self.scratch)
-            && self.checker.motion_valid(tree.node(near), &self.scratch);
+        let ok = self.checker.reach_valid(tree.node(near), &self.scratch);
         self.phases.check += ticks().wrapping_sub(t);
         if !ok {
             return Extend::Trapped;

@@ -251,31 +251,55 @@ impl BatchChecker {
         b: &[f64],
         scratch: &mut [f64],
     ) -> bool {
-        !self.motion_free(robot, resolution, a, b, scratch, |_, _| false)
+        !self.motion_free(robot, resolution, a, b, false, scratch, |_, _| false)
     }
 
-    /// True when every state strictly between `a` and `b` (at `resolution`) is free: the
-    /// states go eight at a time, coarse to fine (bisection order), and a batch the lanes flag
-    /// is handed to `decide` (its state numbers `k`, of `n` steps: `a + k/n (b − a)`, the
-    /// last repeated to fill the batch), which says whether they are all free after all; the
-    /// first batch it does not clear ends the check. So a colliding edge costs the batches up
-    /// to the first flagged one and at most eight decisions.
-    pub fn motion_free(
+    /// Like [`BatchChecker::motion_may_collide`], with the end state `b` among the states
+    /// (first): a tree extension in one pass.
+    pub fn reach_may_collide(
         &mut self,
         robot: &Robot,
         resolution: f64,
         a: &[f64],
         b: &[f64],
         scratch: &mut [f64],
+    ) -> bool {
+        !self.motion_free(robot, resolution, a, b, true, scratch, |_, _| false)
+    }
+
+    /// True when every state strictly between `a` and `b` (at `resolution`; and `b` itself
+    /// when `with_end`, first) is free: the
+    /// states go eight at a time, coarse to fine (bisection order), and a batch the lanes flag
+    /// is handed to `decide` (its state numbers `k`, of `n` steps: `a + k/n (b − a)`, the
+    /// last repeated to fill the batch), which says whether they are all free after all; the
+    /// first batch it does not clear ends the check. So a colliding edge costs the batches up
+    /// to the first flagged one and at most eight decisions.
+    #[allow(clippy::too_many_arguments)]
+    pub fn motion_free(
+        &mut self,
+        robot: &Robot,
+        resolution: f64,
+        a: &[f64],
+        b: &[f64],
+        with_end: bool,
+        scratch: &mut [f64],
         mut decide: impl FnMut(&[usize; LANES], usize) -> bool,
     ) -> bool {
-        let n = motion_steps(robot, a, b, resolution);
-        if n < 2 {
+        let n = motion_steps(robot, a, b, resolution).max(1);
+        if n < 2 && !with_end {
             return true;
         }
         let mut batch = [0usize; LANES];
         let mut filled = 0;
-        let mut step = 1usize << (usize::BITS - 1 - (n - 1).leading_zeros());
+        if with_end {
+            batch[0] = n;
+            filled = 1;
+        }
+        // Interior states, if any (n = 1: the end alone).
+        let mut step = match n {
+            1 => 0,
+            _ => 1usize << (usize::BITS - 1 - (n - 1).leading_zeros()),
+        };
         while step >= 1 {
             let mut k = step;
             while k < n {
@@ -316,7 +340,11 @@ impl BatchChecker {
     ) -> bool {
         self.states += LANES as u64;
         for (lane, &k) in ks.iter().enumerate() {
-            robot.interpolate(a, b, k as f64 / n as f64, scratch);
+            if k == n {
+                scratch.copy_from_slice(b);
+            } else {
+                robot.interpolate(a, b, k as f64 / n as f64, scratch);
+            }
             for (j, &v) in scratch.iter().enumerate() {
                 self.lanes[j].0[lane] = v as f32;
             }
