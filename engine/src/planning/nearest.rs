@@ -311,14 +311,17 @@ impl NearestIndex {
 
     /// Squared distances from `q` (wrapped) to every point of `leaf` (all `SLOTS`).
     #[inline]
+    /// Squared distances from `q` to the points of `leaf` (its filled blocks of eight; the
+    /// rest of `out` is stale) and the least of them.
     fn leaf_distances(&self, leaf: usize, q: &[f32], out: &mut [f32; SLOTS]) -> f32 {
+        let blocks = (self.len[leaf] as usize).div_ceil(8);
         let coords = &self.lanes[leaf * SLOTS * self.dof..][..SLOTS * self.dof];
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: the CPU has AVX2 (checked at construction).
-            return unsafe { leaf_distances_avx2(coords, q, &self.continuous, out) };
+            return unsafe { leaf_distances_avx2(coords, q, &self.continuous, blocks, out) };
         }
-        leaf_distances(coords, q, &self.continuous, out)
+        leaf_distances(coords, q, &self.continuous, blocks, out)
     }
 
     /// Squared distance from `p` (wrapped) to node `at`'s box. Branch-free over the joints:
@@ -343,14 +346,23 @@ impl NearestIndex {
 /// returns the smallest distance (empty slots hold [`EMPTY`], far from everything).
 /// Continuous joints are wrapped values, so their difference needs one correction at most.
 #[inline(always)]
-fn leaf_distances(coords: &[f32], q: &[f32], continuous: &[bool], out: &mut [f32; SLOTS]) -> f32 {
+fn leaf_distances(
+    coords: &[f32],
+    q: &[f32],
+    continuous: &[bool],
+    blocks: usize,
+    out: &mut [f32; SLOTS],
+) -> f32 {
     use std::f32::consts::{PI, TAU};
-    *out = [0.0; SLOTS];
+    const B: usize = 8;
+    let used = blocks * B;
+    out[..used].fill(0.0);
     for (j, &qj) in q.iter().enumerate() {
-        let column: &[f32; SLOTS] = coords[j * SLOTS..][..SLOTS].try_into().unwrap();
+        let column = &coords[j * SLOTS..][..used];
+        let out = &mut out[..used];
         if continuous[j] {
-            for k in 0..SLOTS {
-                let d = qj - column[k];
+            for (o, &c) in out.iter_mut().zip(column) {
+                let d = qj - c;
                 let d = if d > PI {
                     d - TAU
                 } else if d < -PI {
@@ -358,18 +370,18 @@ fn leaf_distances(coords: &[f32], q: &[f32], continuous: &[bool], out: &mut [f32
                 } else {
                     d
                 };
-                out[k] += d * d;
+                *o += d * d;
             }
         } else {
-            for k in 0..SLOTS {
-                let d = qj - column[k];
-                out[k] += d * d;
+            for (o, &c) in out.iter_mut().zip(column) {
+                let d = qj - c;
+                *o += d * d;
             }
         }
     }
-    let mut least = [f32::INFINITY; 8];
-    for chunk in out.chunks_exact(8) {
-        for k in 0..8 {
+    let mut least = [f32::INFINITY; B];
+    for chunk in out[..used].chunks_exact(B) {
+        for k in 0..B {
             least[k] = if chunk[k] < least[k] {
                 chunk[k]
             } else {
@@ -386,9 +398,10 @@ unsafe fn leaf_distances_avx2(
     coords: &[f32],
     q: &[f32],
     continuous: &[bool],
+    blocks: usize,
     out: &mut [f32; SLOTS],
 ) -> f32 {
-    leaf_distances(coords, q, continuous, out)
+    leaf_distances(coords, q, continuous, blocks, out)
 }
 
 fn has_avx2() -> bool {
