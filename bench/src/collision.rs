@@ -272,7 +272,13 @@ fn lane_figures(
     let n_edges = edges.len() as f64;
     let edge_batch_ns = time(&mut || {
         for (a, b) in &edges {
-            black_box(batch.motion_may_collide(robot, DEFAULT_RESOLUTION, a, b, &mut scratch));
+            black_box(batch.motion_may_collide(
+                robot,
+                DEFAULT_RESOLUTION,
+                (a, b),
+                false,
+                &mut scratch,
+            ));
         }
     }) / n_edges;
     let edge_scalar_ns = time(&mut || {

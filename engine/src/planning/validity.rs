@@ -126,7 +126,7 @@ impl<'a> Validity<'a> {
             self.motions += 1;
             let (robot, resolution) = (self.robot, self.resolution);
             let mut q = std::mem::take(&mut self.scratch);
-            let free = !batch.reach_may_collide(robot, resolution, a, b, &mut q);
+            let free = !batch.motion_may_collide(robot, resolution, (a, b), true, &mut q);
             self.scratch = q;
             return free;
         }
@@ -144,7 +144,7 @@ impl<'a> Validity<'a> {
         let far = self.far_from_anchors(a, b);
         let ok = match self.batch.take() {
             Some(mut batch) if far => {
-                let ok = !batch.motion_may_collide(robot, resolution, a, b, &mut q);
+                let ok = !batch.motion_may_collide(robot, resolution, (a, b), false, &mut q);
                 self.batch = Some(batch);
                 ok
             }

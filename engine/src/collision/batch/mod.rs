@@ -240,31 +240,18 @@ impl BatchChecker {
     }
 
     /// True when any of the states strictly between `a` and `b` (at `resolution`, the
-    /// planner's discretisation) may touch something: the edge needs the scalar checker's
-    /// verdict. `false` means every state is free. `scratch` holds one configuration; the
-    /// states are checked eight at a time, coarse to fine.
+    /// planner's discretisation), and `b` itself when `with_end` (first: a tree extension in
+    /// one pass), may touch something. `false` means every state is free. `scratch` holds one
+    /// configuration; the states are checked eight at a time, coarse to fine.
     pub fn motion_may_collide(
         &mut self,
         robot: &Robot,
         resolution: f64,
-        a: &[f64],
-        b: &[f64],
+        (a, b): (&[f64], &[f64]),
+        with_end: bool,
         scratch: &mut [f64],
     ) -> bool {
-        !self.motion_free(robot, resolution, a, b, false, scratch, |_, _| false)
-    }
-
-    /// Like [`BatchChecker::motion_may_collide`], with the end state `b` among the states
-    /// (first): a tree extension in one pass.
-    pub fn reach_may_collide(
-        &mut self,
-        robot: &Robot,
-        resolution: f64,
-        a: &[f64],
-        b: &[f64],
-        scratch: &mut [f64],
-    ) -> bool {
-        !self.motion_free(robot, resolution, a, b, true, scratch, |_, _| false)
+        !self.motion_free(robot, resolution, a, b, with_end, scratch, |_, _| false)
     }
 
     /// True when every state strictly between `a` and `b` (at `resolution`; and `b` itself
