@@ -18,6 +18,17 @@ pub fn ember(args: &[&str]) -> Output {
         .expect("ember runs")
 }
 
+/// The JSON `ember ... --json` printed, after checking it exited successfully (its stderr
+/// is the failure message).
+pub fn json_output(out: &Output) -> serde_json::Value {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("ember prints JSON")
+}
+
 /// The repository's `tests/fixtures` folder.
 pub fn fixtures() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures")

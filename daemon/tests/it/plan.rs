@@ -16,12 +16,7 @@ fn plan_prints_a_solved_path() {
         &fixture("request_joint.yaml"),
         "--json",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let v = crate::json_output(&out);
     assert_eq!(v["status"], "solved");
     let path = v["path"].as_array().unwrap();
     assert_eq!(path.last().unwrap().as_array().unwrap().len(), 8);

@@ -92,13 +92,7 @@ fn plan_takes_a_urdf_and_an_srdf() {
         a.extend_from_slice(extra);
         ember(&a)
     };
-    let out = args(&[]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let v = crate::json_output(&args(&[]));
     assert_eq!(v["status"], "solved");
     // An unknown group is refused (exit 2) naming it and the SRDF's groups.
     let out = args(&["--group", "legs"]);

@@ -447,22 +447,23 @@ pub fn bisect_motion(
     mut valid: impl FnMut(&[f64]) -> bool,
 ) -> bool {
     let n = motion_steps(robot, a, b, resolution);
-    if n < 2 {
-        return true;
-    }
-    let mut step = 1usize << (usize::BITS - 1 - (n - 1).leading_zeros());
-    while step >= 1 {
-        let mut k = step;
-        while k < n {
-            robot.interpolate(a, b, k as f64 / n as f64, scratch);
-            if !valid(scratch) {
-                return false;
-            }
-            k += 2 * step;
-        }
-        step /= 2;
-    }
-    true
+    bisection_order(n).all(|k| {
+        robot.interpolate(a, b, k as f64 / n as f64, scratch);
+        valid(scratch)
+    })
+}
+
+/// The interior steps `1..n` of a motion cut into `n` segments, coarse to fine: the middle,
+/// then the quarters, and so on (empty when `n < 2`).
+pub fn bisection_order(n: usize) -> impl Iterator<Item = usize> {
+    let top = match n {
+        0 | 1 => 0,
+        _ => 1usize << (usize::BITS - 1 - (n - 1).leading_zeros()),
+    };
+    std::iter::successors((top > 0).then_some(top), |&step| {
+        (step > 1).then_some(step / 2)
+    })
+    .flat_map(move |step| (step..n).step_by(2 * step))
 }
 
 /// Stamp of positions that never change (links that do not move).
@@ -494,4 +495,22 @@ fn overlap(a: [f64; 3], ra: f64, b: [f64; 3], rb: f64) -> bool {
 fn dist2(a: [f64; 3], b: [f64; 3]) -> f64 {
     let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
     d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::bisection_order;
+
+    #[test]
+    fn bisection_order_visits_every_interior_step_once_coarse_to_fine() {
+        assert_eq!(bisection_order(0).count(), 0);
+        assert_eq!(bisection_order(1).count(), 0);
+        assert_eq!(bisection_order(8).collect::<Vec<_>>(), [4, 2, 6, 1, 3, 5, 7]);
+        assert_eq!(bisection_order(5).collect::<Vec<_>>(), [4, 2, 1, 3]);
+        for n in 2..200 {
+            let mut ks: Vec<usize> = bisection_order(n).collect();
+            ks.sort();
+            assert_eq!(ks, (1..n).collect::<Vec<_>>(), "n = {n}");
+        }
+    }
 }

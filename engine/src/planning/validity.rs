@@ -81,12 +81,6 @@ impl<'a> Validity<'a> {
         self.anchors.len()
     }
 
-    /// Turns the eight-lane edge checks off (the scalar checker alone: the oracle).
-    pub fn without_batch(mut self) -> Self {
-        self.batch = None;
-        self
-    }
-
     /// Sphere-model work so far (configurations, scalar and in lanes, and motions), and exact
     /// fallbacks.
     pub fn stats(&self) -> (CheckStats, u64) {

@@ -3,7 +3,7 @@
 //! elsewhere the compiler uses what the target has (SSE2 pairs, NEON). No fused multiply-add,
 //! so every path computes the same values.
 
-use std::ops::{Add, Mul, Neg, Sub};
+use std::ops::{Add, Mul, Sub};
 
 /// Number of lanes: configurations checked together.
 pub const LANES: usize = 8;
@@ -123,14 +123,6 @@ impl Mul for F8 {
     #[inline(always)]
     fn mul(self, o: F8) -> F8 {
         self.map2(o, |a, b| a * b)
-    }
-}
-
-impl Neg for F8 {
-    type Output = F8;
-    #[inline(always)]
-    fn neg(self) -> F8 {
-        F8::splat(0.0) - self
     }
 }
 

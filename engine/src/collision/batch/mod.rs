@@ -21,7 +21,7 @@
 
 pub mod lanes;
 
-use crate::collision::checker::motion_steps;
+use crate::collision::checker::{bisection_order, motion_steps};
 use crate::collision::Shape;
 use crate::robot::fk::JointFrames;
 use crate::robot::{Motion, Robot};
@@ -282,27 +282,15 @@ impl BatchChecker {
             batch[0] = n;
             filled = 1;
         }
-        // Interior states, if any (n = 1: the end alone).
-        let mut step = match n {
-            1 => 0,
-            _ => 1usize << (usize::BITS - 1 - (n - 1).leading_zeros()),
-        };
-        while step >= 1 {
-            let mut k = step;
-            while k < n {
-                batch[filled] = k;
-                filled += 1;
-                if filled == LANES {
-                    if self.states_may_collide(robot, a, b, n, &batch, scratch)
-                        && !decide(&batch, n)
-                    {
-                        return false;
-                    }
-                    filled = 0;
+        for k in bisection_order(n) {
+            batch[filled] = k;
+            filled += 1;
+            if filled == LANES {
+                if self.states_may_collide(robot, a, b, n, &batch, scratch) && !decide(&batch, n) {
+                    return false;
                 }
-                k += 2 * step;
+                filled = 0;
             }
-            step /= 2;
         }
         if filled > 0 {
             self.states -= (LANES - filled) as u64;
