@@ -261,7 +261,6 @@ fn lane_figures(
         .iter()
         .map(|(a, b)| motion_steps(robot, a, b, DEFAULT_RESOLUTION).saturating_sub(1))
         .sum();
-    let mut scratch = vec![0.0; dof];
     if edges.is_empty() {
         return LaneFigures {
             batch_ns,
@@ -272,13 +271,7 @@ fn lane_figures(
     let n_edges = edges.len() as f64;
     let edge_batch_ns = time(&mut || {
         for (a, b) in &edges {
-            black_box(batch.motion_may_collide(
-                robot,
-                DEFAULT_RESOLUTION,
-                (a, b),
-                false,
-                &mut scratch,
-            ));
+            black_box(batch.motion_may_collide(robot, DEFAULT_RESOLUTION, (a, b), false));
         }
     }) / n_edges;
     let edge_scalar_ns = time(&mut || {

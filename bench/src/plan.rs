@@ -6,7 +6,8 @@
 //! planning-time statistics (planning = IK + search; simplification and the exact validation
 //! reported apart) and ends with `RESULT plan set=<folder> n=<problems> solved=<count>
 //! median_ms=<f> mean_ms=<f> p95_ms=<f> start_refused=<k> goal_refused=<k>
-//! simplify_ms=<median> validate_ms=<median>`; a failure counts as the time limit in the mean,
+//! simplify_ms=<median> validate_ms=<median> median_iterations= median_nodes=` and the time
+//! split; a failure counts as the time limit in the mean,
 //! as in the paper.
 
 use crate::stats::summary;
@@ -68,6 +69,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let mut validate = Vec::new();
         let (mut solved, mut start_refused, mut goal_refused) = (0, 0, 0);
         let mut split = Split::default();
+        let (mut iterations, mut nodes) = (Vec::new(), Vec::new());
         for p in &set.problems {
             let env = p.scene.environment()?;
             let robot = p.scene.robot_with(&robot, &p.request.start_joints)?;
@@ -91,6 +93,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     simplify.push(res.stats.simplify_s * 1e3);
                     validate.push(res.stats.validate_s * 1e3);
                     split.add(&res.stats);
+                    iterations.push(res.stats.iterations as f64);
+                    nodes.push(res.stats.tree_nodes as f64);
                 }
                 Err(e) => {
                     match e {
@@ -106,6 +110,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let (median, mean, p95) = summary(&mut times);
         let (simp, _, _) = summary(&mut simplify);
         let (val, _, _) = summary(&mut validate);
+        let (median_iterations, _, _) = summary(&mut iterations);
+        let (median_nodes, _, _) = summary(&mut nodes);
         println!(
             "{:<24} {:>4} {:>6} {:>6} {:>6} {:>10.3} {:>10.3} {:>10.3} {:>11.3} {:>11.3}",
             set.name, n, solved, start_refused, goal_refused, median, mean, p95, simp, val
@@ -113,7 +119,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         results.push(format!(
             "RESULT plan set={} n={n} solved={solved} median_ms={median:.3} mean_ms={mean:.3} \
              p95_ms={p95:.3} start_refused={start_refused} goal_refused={goal_refused} \
-             simplify_ms={simp:.3} validate_ms={val:.3} {}",
+             simplify_ms={simp:.3} validate_ms={val:.3} median_iterations={median_iterations:.0} \
+             median_nodes={median_nodes:.0} {}",
             set.name,
             split.keys()
         ));

@@ -505,7 +505,10 @@ mod tests {
     fn bisection_order_visits_every_interior_step_once_coarse_to_fine() {
         assert_eq!(bisection_order(0).count(), 0);
         assert_eq!(bisection_order(1).count(), 0);
-        assert_eq!(bisection_order(8).collect::<Vec<_>>(), [4, 2, 6, 1, 3, 5, 7]);
+        assert_eq!(
+            bisection_order(8).collect::<Vec<_>>(),
+            [4, 2, 6, 1, 3, 5, 7]
+        );
         assert_eq!(bisection_order(5).collect::<Vec<_>>(), [4, 2, 1, 3]);
         for n in 2..200 {
             let mut ks: Vec<usize> = bisection_order(n).collect();

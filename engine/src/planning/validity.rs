@@ -118,11 +118,7 @@ impl<'a> Validity<'a> {
         let far = self.far_from_anchors(a, b);
         if let (Some(batch), true) = (self.batch.as_mut(), far) {
             self.motions += 1;
-            let (robot, resolution) = (self.robot, self.resolution);
-            let mut q = std::mem::take(&mut self.scratch);
-            let free = !batch.motion_may_collide(robot, resolution, (a, b), true, &mut q);
-            self.scratch = q;
-            return free;
+            return !batch.motion_may_collide(self.robot, self.resolution, (a, b), true);
         }
         self.is_valid(b) && self.motion_valid(a, b)
     }
@@ -134,17 +130,16 @@ impl<'a> Validity<'a> {
     pub fn motion_valid(&mut self, a: &[f64], b: &[f64]) -> bool {
         self.motions += 1;
         let (robot, resolution) = (self.robot, self.resolution);
-        let mut q = std::mem::take(&mut self.scratch);
         let far = self.far_from_anchors(a, b);
-        let ok = match self.batch.take() {
+        match self.batch.take() {
             Some(mut batch) if far => {
-                let ok = !batch.motion_may_collide(robot, resolution, (a, b), false, &mut q);
+                let ok = !batch.motion_may_collide(robot, resolution, (a, b), false);
                 self.batch = Some(batch);
                 ok
             }
             Some(mut batch) => {
                 let mut state = std::mem::take(&mut self.state);
-                let ok = batch.motion_free(robot, resolution, a, b, false, &mut q, |ks, n| {
+                let ok = batch.motion_free(robot, resolution, (a, b), false, |ks, n| {
                     ks.iter().all(|&k| {
                         robot.interpolate(a, b, k as f64 / n as f64, &mut state);
                         self.is_valid(&state)
@@ -154,10 +149,13 @@ impl<'a> Validity<'a> {
                 self.batch = Some(batch);
                 ok
             }
-            None => bisect_motion(robot, resolution, a, b, &mut q, |q| self.is_valid(q)),
-        };
-        self.scratch = q;
-        ok
+            None => {
+                let mut q = std::mem::take(&mut self.scratch);
+                let ok = bisect_motion(robot, resolution, a, b, &mut q, |q| self.is_valid(q));
+                self.scratch = q;
+                ok
+            }
+        }
     }
 
     /// True when no state of the motion from `a` to `b` can be within `exact_radius` of an

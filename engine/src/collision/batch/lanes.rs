@@ -64,6 +64,34 @@ impl F8 {
         m
     }
 
+    /// Bit `k` set where lane `k` of `self` is at most lane `k` of `o`.
+    #[inline(always)]
+    pub fn le_mask(self, o: F8) -> u32 {
+        let mut m = 0u32;
+        for k in 0..LANES {
+            m |= ((self.0[k] <= o.0[k]) as u32) << k;
+        }
+        m
+    }
+
+    /// The least lane (halving, so it runs in vector halves).
+    #[inline(always)]
+    pub fn hmin(self) -> f32 {
+        let min = |a: f32, b: f32| if a < b { a } else { b };
+        let v = self.0;
+        let a: [f32; 4] = std::array::from_fn(|k| min(v[k], v[k + 4]));
+        min(min(a[0], a[2]), min(a[1], a[3]))
+    }
+
+    /// The greatest lane (halving).
+    #[inline(always)]
+    pub fn hmax(self) -> f32 {
+        let max = |a: f32, b: f32| if a > b { a } else { b };
+        let v = self.0;
+        let a: [f32; 4] = std::array::from_fn(|k| max(v[k], v[k + 4]));
+        max(max(a[0], a[2]), max(a[1], a[3]))
+    }
+
     /// Sine and cosine of every lane, for angles of a few turns at most (joint values):
     /// reduction by π/2 in two parts, then Taylor polynomials on [-π/4, π/4] (error below
     /// 1e-7, the `f32` rounding).
@@ -87,16 +115,14 @@ impl F8 {
                 + r2 * (-0.5
                     + r2 * (1.0 / 24.0
                         + r2 * (-1.0 / 720.0 + r2 * (1.0 / 40_320.0 + r2 * (-1.0 / 3_628_800.0)))));
-            // Quadrant n mod 4: odd ones swap sine and cosine; the signs follow bit 1 of n
-            // (sine) and of n + 1 (cosine).
-            let q = n as i32;
-            let (a, b) = if q & 1 == 1 {
-                (cos_r, sin_r)
-            } else {
-                (sin_r, cos_r)
-            };
-            s[k] = if q & 2 == 2 { -a } else { a };
-            c[k] = if (q + 1) & 2 == 2 { -b } else { b };
+            // Quadrant m = n mod 4, kept in floating point so the selections stay in vector
+            // lanes: odd quadrants swap sine and cosine; sine is negated in quadrants 2 and 3,
+            // cosine in 1 and 2.
+            let m = n - 4.0 * (n * 0.25).floor();
+            let odd = m == 1.0 || m == 3.0;
+            let (a, b) = if odd { (cos_r, sin_r) } else { (sin_r, cos_r) };
+            s[k] = if m >= 2.0 { -a } else { a };
+            c[k] = if m == 1.0 || m == 2.0 { -b } else { b };
         }
         (F8(s), F8(c))
     }
@@ -159,6 +185,16 @@ impl Pose8 {
             r,
             t: self.apply(o.t),
         }
+    }
+
+    /// The rotation `a · self.r` (`a` row-major).
+    #[inline(always)]
+    pub fn r_after(&self, a: &[F8; 9]) -> [F8; 9] {
+        let b = &self.r;
+        std::array::from_fn(|e| {
+            let (i, j) = (e / 3, e % 3);
+            a[i * 3] * b[j] + a[i * 3 + 1] * b[3 + j] + a[i * 3 + 2] * b[6 + j]
+        })
     }
 
     /// The image of lane points `p`.

@@ -34,8 +34,9 @@ pub const MARGIN: f32 = 1e-4;
 #[derive(Clone, Copy)]
 enum Kind {
     Fixed,
-    /// About a coordinate axis (`0..3`), with its sign: the common case, a quarter of the work.
-    RevoluteAxis(usize, f32),
+    /// About a coordinate axis, with its sign: the common case, a quarter of the work. Holds
+    /// the two other axes (the columns that turn).
+    RevoluteAxis([usize; 2], f32),
     Revolute([f32; 3]),
     Prismatic([f32; 3]),
 }
@@ -65,7 +66,7 @@ pub struct BatchChecker {
     /// rotation, translation), motion, variable.
     frame: Vec<usize>,
     parent: Vec<Option<usize>>,
-    origin: Vec<([f32; 9], [f32; 3])>,
+    origin: Vec<Origin>,
     kind: Vec<Kind>,
     variable: Vec<usize>,
     moves: Vec<bool>,
@@ -80,6 +81,9 @@ pub struct BatchChecker {
     /// Per sphere: centre (link frame), radius (+ margin).
     sphere: Vec<([f32; 3], f32)>,
     objects: Vec<Object8>,
+    /// Object world boxes eight objects per vector (`[lo; 3]`, `[hi; 3]`); padding objects
+    /// have empty boxes.
+    object_boxes: Vec<([F8; 3], [F8; 3])>,
     /// Self-collision pairs with a moving link, both with spheres.
     pairs: Vec<(usize, usize)>,
     /// Per-batch state.
@@ -91,6 +95,8 @@ pub struct BatchChecker {
     sphere_stamp: Vec<u32>,
     epoch: u32,
     lanes: Vec<F8>,
+    /// Per variable: the motion's difference (end minus start) being checked.
+    delta: Vec<f64>,
     /// States checked so far.
     states: u64,
     avx2: bool,
@@ -118,14 +124,17 @@ impl BatchChecker {
             let m = o.rotation.matrix();
             let r = std::array::from_fn(|k| f(m[(k / 3, k % 3)]));
             let t = o.translation.vector;
-            origin.push((r, [f(t.x), f(t.y), f(t.z)]));
+            origin.push(Origin::new(r, [f(t.x), f(t.y), f(t.z)]));
             let axis = |a: &nalgebra::Unit<nalgebra::Vector3<f64>>| [f(a.x), f(a.y), f(a.z)];
             let (k, v) = match &link.motion {
                 Motion::Fixed => (Kind::Fixed, 0),
                 Motion::Revolute { axis: a, variable } => {
                     let along = (0..3).find(|&k| (a[k].abs() - 1.0).abs() < 1e-12);
                     match along {
-                        Some(k) => (Kind::RevoluteAxis(k, a[k].signum() as f32), *variable),
+                        Some(k) => (
+                            Kind::RevoluteAxis([(k + 1) % 3, (k + 2) % 3], a[k].signum() as f32),
+                            *variable,
+                        ),
                         None => (Kind::Revolute(axis(a)), *variable),
                     }
                 }
@@ -169,7 +178,7 @@ impl BatchChecker {
                 (place(l, model.center[s]), f(model.radius[s]) + MARGIN)
             })
             .collect();
-        let objects = env
+        let objects: Vec<Object8> = env
             .placed()
             .map(|o| Object8 {
                 rot_t: std::array::from_fn(|k| f(o.rot_t[k / 3][k % 3])),
@@ -198,12 +207,29 @@ impl BatchChecker {
                 },
             })
             .collect();
+        let object_boxes = objects
+            .chunks(LANES)
+            .map(|chunk| {
+                let lane = |k: usize, hi: bool, i: usize| match chunk.get(k) {
+                    Some(o) if hi => o.hi[i],
+                    Some(o) => o.lo[i],
+                    None if hi => f32::NEG_INFINITY,
+                    None => f32::INFINITY,
+                };
+                (
+                    std::array::from_fn(|i| F8(std::array::from_fn(|k| lane(k, false, i)))),
+                    std::array::from_fn(|i| F8(std::array::from_fn(|k| lane(k, true, i)))),
+                )
+            })
+            .collect();
         let (moving_pairs, _) = robot.partition_pairs();
         let pairs = moving_pairs
             .into_iter()
             .filter(|&(a, b)| bound[a].is_some() && bound[b].is_some())
             .collect();
         let n_links = links.len();
+        // Links come parents first (`Robot::links`), so a pose is computed after its parent's.
+        debug_assert!((0..n_links).all(|l| links[l].parent.is_none_or(|p| frame[p] < l)));
         let mut sut = BatchChecker {
             dof: robot.dof(),
             parent: links.iter().map(|l| l.parent.map(|p| frame[p])).collect(),
@@ -218,6 +244,7 @@ impl BatchChecker {
             cluster,
             sphere,
             objects,
+            object_boxes,
             pairs,
             poses: vec![Pose8::default(); n_links],
             bounds: vec![[F8::default(); 3]; n_links],
@@ -228,6 +255,7 @@ impl BatchChecker {
             epoch: 0,
             states: 0,
             lanes: vec![F8::default(); robot.dof()],
+            delta: vec![0.0; robot.dof()],
             avx2: has_avx2(),
         };
         // Frames that never move have the same pose in every batch.
@@ -241,17 +269,16 @@ impl BatchChecker {
 
     /// True when any of the states strictly between `a` and `b` (at `resolution`, the
     /// planner's discretisation), and `b` itself when `with_end` (first: a tree extension in
-    /// one pass), may touch something. `false` means every state is free. `scratch` holds one
-    /// configuration; the states are checked eight at a time, coarse to fine.
+    /// one pass), may touch something. `false` means every state is free. The states are
+    /// checked eight at a time, coarse to fine.
     pub fn motion_may_collide(
         &mut self,
         robot: &Robot,
         resolution: f64,
         (a, b): (&[f64], &[f64]),
         with_end: bool,
-        scratch: &mut [f64],
     ) -> bool {
-        !self.motion_free(robot, resolution, a, b, with_end, scratch, |_, _| false)
+        !self.motion_free(robot, resolution, (a, b), with_end, |_, _| false)
     }
 
     /// True when every state strictly between `a` and `b` (at `resolution`; and `b` itself
@@ -261,20 +288,22 @@ impl BatchChecker {
     /// last repeated to fill the batch), which says whether they are all free after all; the
     /// first batch it does not clear ends the check. So a colliding edge costs the batches up
     /// to the first flagged one and at most eight decisions.
-    #[allow(clippy::too_many_arguments)]
     pub fn motion_free(
         &mut self,
         robot: &Robot,
         resolution: f64,
-        a: &[f64],
-        b: &[f64],
+        (a, b): (&[f64], &[f64]),
         with_end: bool,
-        scratch: &mut [f64],
         mut decide: impl FnMut(&[usize; LANES], usize) -> bool,
     ) -> bool {
         let n = motion_steps(robot, a, b, resolution).max(1);
         if n < 2 && !with_end {
             return true;
+        }
+        // The states are a + (k / n) · delta; continuous joints need no wrapping here (the
+        // kinematics only takes their sine and cosine).
+        for (j, d) in self.delta.iter_mut().enumerate() {
+            *d = robot.joint_delta(j, a[j], b[j]);
         }
         let mut batch = [0usize; LANES];
         let mut filled = 0;
@@ -286,7 +315,7 @@ impl BatchChecker {
             batch[filled] = k;
             filled += 1;
             if filled == LANES {
-                if self.states_may_collide(robot, a, b, n, &batch, scratch) && !decide(&batch, n) {
+                if self.states_may_collide(a, n, &batch) && !decide(&batch, n) {
                     return false;
                 }
                 filled = 0;
@@ -297,32 +326,18 @@ impl BatchChecker {
             for i in filled..LANES {
                 batch[i] = batch[filled - 1];
             }
-            if self.states_may_collide(robot, a, b, n, &batch, scratch) && !decide(&batch, n) {
+            if self.states_may_collide(a, n, &batch) && !decide(&batch, n) {
                 return false;
             }
         }
         true
     }
 
-    fn states_may_collide(
-        &mut self,
-        robot: &Robot,
-        a: &[f64],
-        b: &[f64],
-        n: usize,
-        ks: &[usize; LANES],
-        scratch: &mut [f64],
-    ) -> bool {
+    fn states_may_collide(&mut self, a: &[f64], n: usize, ks: &[usize; LANES]) -> bool {
         self.states += LANES as u64;
-        for (lane, &k) in ks.iter().enumerate() {
-            if k == n {
-                scratch.copy_from_slice(b);
-            } else {
-                robot.interpolate(a, b, k as f64 / n as f64, scratch);
-            }
-            for (j, &v) in scratch.iter().enumerate() {
-                self.lanes[j].0[lane] = v as f32;
-            }
+        let t: [f64; LANES] = std::array::from_fn(|lane| ks[lane] as f64 / n as f64);
+        for (j, (&aj, &dj)) in a.iter().zip(&self.delta).enumerate() {
+            self.lanes[j] = F8(std::array::from_fn(|lane| (aj + t[lane] * dj) as f32));
         }
         self.lanes_may_collide()
     }
@@ -377,25 +392,52 @@ impl BatchChecker {
 
     #[inline(always)]
     fn fk_link(&mut self, l: usize) {
-        let (r, t) = self.origin[l];
-        let origin = Pose8::splat(r, t);
-        let local = match self.kind[l] {
-            Kind::Fixed => origin,
-            Kind::RevoluteAxis(k, sign) => {
-                turn_about_axis(&origin, k, sign, self.lanes[self.variable[l]])
+        // The parent's pose times the constant joint origin, then the joint's own motion,
+        // written in place: a pose is 384 bytes, and copies cost as much as the arithmetic.
+        let origin = &self.origin[l];
+        let (done, rest) = self.poses.split_at_mut(l);
+        let at = &mut rest[0];
+        let parent = match self.parent[l] {
+            None => {
+                *at = Pose8::splat(origin.r, origin.t);
+                None
             }
-            Kind::Revolute(axis) => origin.compose(&rotation(axis, self.lanes[self.variable[l]])),
+            Some(p) => {
+                origin.translate(&done[p], at);
+                Some(&done[p].r)
+            }
+        };
+        if let Kind::RevoluteAxis(axes, sign) = self.kind[l] {
+            let (s, c) = self.lanes[self.variable[l]].sin_cos();
+            let s = s * F8::splat(sign);
+            match (parent, origin.turn) {
+                // The common case: the parent's rotation turned straight into place.
+                (Some(r), Turn::Identity) => turn_columns(r, &mut at.r, axes, (s, c)),
+                (Some(r), _) => {
+                    origin.rotate(r, &mut at.r);
+                    let r = at.r;
+                    turn_columns(&r, &mut at.r, axes, (s, c));
+                }
+                (None, _) => {
+                    let r = at.r;
+                    turn_columns(&r, &mut at.r, axes, (s, c));
+                }
+            }
+            return;
+        }
+        if let Some(r) = parent {
+            origin.rotate(r, &mut at.r);
+        }
+        match self.kind[l] {
+            Kind::Fixed | Kind::RevoluteAxis(..) => {}
+            Kind::Revolute(axis) => {
+                at.r = rotation(axis, self.lanes[self.variable[l]]).r_after(&at.r);
+            }
             Kind::Prismatic(axis) => {
                 let v = self.lanes[self.variable[l]];
-                let mut m = Pose8::splat([1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0], [0.0; 3]);
-                m.t = axis.map(|a| F8::splat(a) * v);
-                origin.compose(&m)
+                at.t = at.apply(axis.map(|a| F8::splat(a) * v));
             }
-        };
-        self.poses[l] = match self.parent[l] {
-            None => local,
-            Some(p) => self.poses[p].compose(&local),
-        };
+        }
     }
 
     #[inline(always)]
@@ -427,12 +469,15 @@ impl BatchChecker {
             let (_, br) = self.bound[l].unwrap_or_default();
             // Objects whose world box the link's bound reaches in some lane.
             let b = self.bounds[l];
-            let lo = b.map(|v| hmin(v) - br);
-            let hi = b.map(|v| hmax(v) + br);
+            let lo = b.map(|v| F8::splat(v.hmin() - br));
+            let hi = b.map(|v| F8::splat(v.hmax() + br));
             let mut cand = 0u64;
-            for (j, o) in self.objects.iter().enumerate() {
-                let apart = (0..3).any(|i| hi[i] < o.lo[i] || lo[i] > o.hi[i]);
-                cand |= (!apart as u64) << j;
+            for (block, (olo, ohi)) in self.object_boxes.iter().enumerate() {
+                let mut reach = u32::MAX;
+                for i in 0..3 {
+                    reach &= olo[i].le_mask(hi[i]) & lo[i].le_mask(ohi[i]);
+                }
+                cand |= (reach as u64) << (block * LANES);
             }
             let link_mask = penetrated(&self.objects, cand, b, br);
             if link_mask == 0 {
@@ -508,20 +553,99 @@ impl BatchChecker {
     }
 }
 
-/// `origin` turned by the lane angles `q` about its coordinate axis `k` (times `sign`): only
-/// the two other columns change.
-#[inline(always)]
-fn turn_about_axis(origin: &Pose8, k: usize, sign: f32, q: F8) -> Pose8 {
-    let (s, c) = q.sin_cos();
-    let s = s * F8::splat(sign);
-    let (i, j) = ((k + 1) % 3, (k + 2) % 3);
-    let mut out = *origin;
-    for row in 0..3 {
-        let (a, b) = (origin.r[row * 3 + i], origin.r[row * 3 + j]);
-        out.r[row * 3 + i] = a * c + b * s;
-        out.r[row * 3 + j] = b * c - a * s;
+/// A joint origin (row-major rotation `r`, translation `t`), with its rotation sorted by the
+/// work it takes: none, a signed permutation of the axes (quarter turns, common in robot
+/// descriptions), or a general product.
+#[derive(Clone, Copy)]
+struct Origin {
+    r: [f32; 9],
+    t: [f32; 3],
+    turn: Turn,
+}
+
+#[derive(Clone, Copy)]
+enum Turn {
+    Identity,
+    /// Column `j` of the rotation is `sign · e[axis]`: `(axis, sign)` per column.
+    Axes([(usize, f32); 3]),
+    General,
+}
+
+impl Origin {
+    fn new(r: [f32; 9], t: [f32; 3]) -> Self {
+        let column = |j: usize| -> Option<(usize, f32)> {
+            let c = [r[j], r[3 + j], r[6 + j]];
+            let i = (0..3).find(|&i| (c[i].abs() - 1.0).abs() < 1e-6)?;
+            let rest = (0..3).filter(|&k| k != i).all(|k| c[k].abs() < 1e-6);
+            rest.then_some((i, c[i].signum()))
+        };
+        let turn = match [column(0), column(1), column(2)] {
+            [Some(a), Some(b), Some(c)] if [a, b, c] == [(0, 1.0), (1, 1.0), (2, 1.0)] => {
+                Turn::Identity
+            }
+            [Some(a), Some(b), Some(c)] => Turn::Axes([a, b, c]),
+            _ => Turn::General,
+        };
+        Origin { r, t, turn }
     }
-    out
+
+    /// `out.t` = the translation of `parent · self` (zero components skipped).
+    #[inline(always)]
+    fn translate(&self, parent: &Pose8, out: &mut Pose8) {
+        let a = &parent.r;
+        out.t = parent.t;
+        for (k, &v) in self.t.iter().enumerate() {
+            if v != 0.0 {
+                let v = F8::splat(v);
+                for row in 0..3 {
+                    out.t[row] = out.t[row] + a[row * 3 + k] * v;
+                }
+            }
+        }
+    }
+
+    /// `out` = the rotation `a · self.r`, permuting columns when it can.
+    #[inline(always)]
+    fn rotate(&self, a: &[F8; 9], out: &mut [F8; 9]) {
+        match self.turn {
+            Turn::Identity => *out = *a,
+            Turn::Axes(axes) => {
+                for row in 0..3 {
+                    for (j, &(i, sign)) in axes.iter().enumerate() {
+                        let v = a[row * 3 + i];
+                        out[row * 3 + j] = if sign > 0.0 { v } else { F8::splat(0.0) - v };
+                    }
+                }
+            }
+            Turn::General => *out = Pose8::splat(self.r, [0.0; 3]).r_after(a),
+        }
+    }
+}
+
+/// `to = from` turned by the lane angles whose sine and cosine are `(s, c)` about the
+/// coordinate axis other than `[i, j]`: those two columns turn, the third is copied.
+#[inline(always)]
+fn turn_columns(from: &[F8; 9], to: &mut [F8; 9], axes: [usize; 2], sc: (F8, F8)) {
+    // Column numbers known at compile time: no index arithmetic or bounds checks.
+    match axes {
+        [1, 2] => turn_columns_of::<1, 2, 0>(from, to, sc),
+        [2, 0] => turn_columns_of::<2, 0, 1>(from, to, sc),
+        _ => turn_columns_of::<0, 1, 2>(from, to, sc),
+    }
+}
+
+#[inline(always)]
+fn turn_columns_of<const I: usize, const J: usize, const K: usize>(
+    from: &[F8; 9],
+    to: &mut [F8; 9],
+    (s, c): (F8, F8),
+) {
+    for row in 0..3 {
+        let (a, b) = (from[row * 3 + I], from[row * 3 + J]);
+        to[row * 3 + I] = a * c + b * s;
+        to[row * 3 + J] = b * c - a * s;
+        to[row * 3 + K] = from[row * 3 + K];
+    }
 }
 
 /// Rotation by the lane angles `q` about the unit `axis` (Rodrigues).
@@ -607,16 +731,6 @@ fn penetrates(o: &Object8, p: [F8; 3], r: f32) -> u32 {
             (x * x + y * y + zc * zc).lt_mask(F8::splat(reach * reach))
         }
     }
-}
-
-#[inline(always)]
-fn hmin(v: F8) -> f32 {
-    v.0.iter().copied().fold(f32::INFINITY, f32::min)
-}
-
-#[inline(always)]
-fn hmax(v: F8) -> f32 {
-    v.0.iter().copied().fold(f32::NEG_INFINITY, f32::max)
 }
 
 fn has_avx2() -> bool {
