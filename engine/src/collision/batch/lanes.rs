@@ -57,19 +57,76 @@ impl F8 {
     /// Bit `k` set where lane `k` of `self` is below lane `k` of `o`.
     #[inline(always)]
     pub fn lt_mask(self, o: F8) -> u32 {
-        let mut m = 0u32;
-        for k in 0..LANES {
-            m |= ((self.0[k] < o.0[k]) as u32) << k;
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::_mm_cmplt_ps;
+            // SAFETY: SSE is part of the x86-64 baseline.
+            self.mask_by(o, |a, b| unsafe { _mm_cmplt_ps(a, b) })
         }
-        m
+        #[cfg(not(target_arch = "x86_64"))]
+        self.mask_by(o, |a, b| a < b)
+    }
+
+    /// True when some lane of `self` is below the same lane of `o`.
+    #[inline(always)]
+    pub fn any_lt(self, o: F8) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::{_mm_cmplt_ps, _mm_load_ps, _mm_movemask_ps, _mm_or_ps};
+            // SAFETY: as in `mask_by`.
+            unsafe {
+                let (a, b) = (self.0.as_ptr(), o.0.as_ptr());
+                let lo = _mm_cmplt_ps(_mm_load_ps(a), _mm_load_ps(b));
+                let hi = _mm_cmplt_ps(_mm_load_ps(a.add(4)), _mm_load_ps(b.add(4)));
+                _mm_movemask_ps(_mm_or_ps(lo, hi)) != 0
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            self.lt_mask(o) != 0
+        }
     }
 
     /// Bit `k` set where lane `k` of `self` is at most lane `k` of `o`.
     #[inline(always)]
     pub fn le_mask(self, o: F8) -> u32 {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::_mm_cmple_ps;
+            // SAFETY: SSE is part of the x86-64 baseline.
+            self.mask_by(o, |a, b| unsafe { _mm_cmple_ps(a, b) })
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        self.mask_by(o, |a, b| a <= b)
+    }
+
+    /// The lanes where `cmp` holds as a bit mask, four lanes per SSE compare and move-mask
+    /// (the portable loop does not become one vector compare; this does, with AVX merging
+    /// the halves).
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    fn mask_by(
+        self,
+        o: F8,
+        cmp: impl Fn(std::arch::x86_64::__m128, std::arch::x86_64::__m128) -> std::arch::x86_64::__m128,
+    ) -> u32 {
+        use std::arch::x86_64::{_mm_load_ps, _mm_movemask_ps};
+        // SAFETY: F8 is 32-byte aligned, so both halves are 16-byte aligned; SSE is part of
+        // the x86-64 baseline.
+        unsafe {
+            let (a, b) = (self.0.as_ptr(), o.0.as_ptr());
+            let lo = _mm_movemask_ps(cmp(_mm_load_ps(a), _mm_load_ps(b)));
+            let hi = _mm_movemask_ps(cmp(_mm_load_ps(a.add(4)), _mm_load_ps(b.add(4))));
+            (lo | hi << 4) as u32
+        }
+    }
+
+    #[cfg(not(target_arch = "x86_64"))]
+    #[inline(always)]
+    fn mask_by(self, o: F8, cmp: impl Fn(f32, f32) -> bool) -> u32 {
         let mut m = 0u32;
         for k in 0..LANES {
-            m |= ((self.0[k] <= o.0[k]) as u32) << k;
+            m |= (cmp(self.0[k], o.0[k]) as u32) << k;
         }
         m
     }

@@ -511,27 +511,31 @@ impl BatchChecker {
                 self.bound[b].unwrap_or_default().1,
             );
             let (ba, bb) = (self.bounds_of(a), self.bounds_of(b));
-            if overlap(ba, ra, bb, rb) == 0 {
+            if !overlap(ba, ra, bb, rb) {
                 continue;
             }
             for ca in self.link_clusters[a].clone() {
                 self.place_cluster(a, ca);
                 let (pa, cra) = (self.cluster_at[ca], self.cluster[ca].1);
-                if overlap(pa, cra, bb, rb) == 0 {
+                if !overlap(pa, cra, bb, rb) {
                     continue;
                 }
                 for cb in self.link_clusters[b].clone() {
                     self.place_cluster(b, cb);
                     let (pb, crb) = (self.cluster_at[cb], self.cluster[cb].1);
-                    if overlap(pa, cra, pb, crb) == 0 {
+                    if !overlap(pa, cra, pb, crb) {
                         continue;
                     }
                     self.place_spheres(a, ca);
                     self.place_spheres(b, cb);
                     for i in self.cluster[ca].2.clone() {
+                        // A sphere clear of the other cluster's bound is clear of its spheres.
+                        if !overlap(self.sphere_at[i], self.sphere[i].1, pb, crb) {
+                            continue;
+                        }
                         for j in self.cluster[cb].2.clone() {
                             let (si, sj) = (self.sphere_at[i], self.sphere_at[j]);
-                            if overlap(si, self.sphere[i].1, sj, self.sphere[j].1) != 0 {
+                            if overlap(si, self.sphere[i].1, sj, self.sphere[j].1) {
                                 return true;
                             }
                         }
@@ -672,12 +676,12 @@ fn rotation(axis: [f32; 3], q: F8) -> Pose8 {
     }
 }
 
-/// Lanes where balls `(a, ra)` and `(b, rb)` overlap.
+/// True when balls `(a, ra)` and `(b, rb)` overlap in some lane.
 #[inline(always)]
-fn overlap(a: [F8; 3], ra: f32, b: [F8; 3], rb: f32) -> u32 {
+fn overlap(a: [F8; 3], ra: f32, b: [F8; 3], rb: f32) -> bool {
     let (dx, dy, dz) = (a[0] - b[0], a[1] - b[1], a[2] - b[2]);
     let r = ra + rb;
-    (dx * dx + dy * dy + dz * dz).lt_mask(F8::splat(r * r))
+    (dx * dx + dy * dy + dz * dz).any_lt(F8::splat(r * r))
 }
 
 /// The objects of `mask` that the ball at `p` with radius `r` penetrates in some lane.
@@ -688,17 +692,17 @@ fn penetrated(objects: &[Object8], mask: u64, p: [F8; 3], r: f32) -> u64 {
     while m != 0 {
         let j = m.trailing_zeros() as usize;
         m &= m - 1;
-        if penetrates(&objects[j], p, r) != 0 {
+        if penetrates(&objects[j], p, r) {
             out |= 1 << j;
         }
     }
     out
 }
 
-/// Lanes where the ball at `p` with radius `r` penetrates object `o` (the scalar checker's
+/// True when the ball at `p` with radius `r` penetrates object `o` in some lane (the scalar checker's
 /// test: signed distance below `r`).
 #[inline(always)]
-fn penetrates(o: &Object8, p: [F8; 3], r: f32) -> u32 {
+fn penetrates(o: &Object8, p: [F8; 3], r: f32) -> bool {
     let d = [
         p[0] - F8::splat(o.t[0]),
         p[1] - F8::splat(o.t[1]),
@@ -712,23 +716,23 @@ fn penetrates(o: &Object8, p: [F8; 3], r: f32) -> u32 {
     match o.kind {
         ObjectKind::Sphere { r: big } => {
             let reach = big + r;
-            (x * x + y * y + z * z).lt_mask(F8::splat(reach * reach))
+            (x * x + y * y + z * z).any_lt(F8::splat(reach * reach))
         }
         ObjectKind::Box { h } => {
             let qx = (x.abs() - F8::splat(h[0])).max(zero);
             let qy = (y.abs() - F8::splat(h[1])).max(zero);
             let qz = (z.abs() - F8::splat(h[2])).max(zero);
-            (qx * qx + qy * qy + qz * qz).lt_mask(F8::splat(r * r))
+            (qx * qx + qy * qy + qz * qz).any_lt(F8::splat(r * r))
         }
         ObjectKind::Cylinder { r: big, hl } => {
             let radial = ((x * x + y * y).sqrt() - F8::splat(big)).max(zero);
             let axial = (z.abs() - F8::splat(hl)).max(zero);
-            (radial * radial + axial * axial).lt_mask(F8::splat(r * r))
+            (radial * radial + axial * axial).any_lt(F8::splat(r * r))
         }
         ObjectKind::Capsule { r: big, hl } => {
             let zc = z - z.max(F8::splat(-hl)).min(F8::splat(hl));
             let reach = big + r;
-            (x * x + y * y + zc * zc).lt_mask(F8::splat(reach * reach))
+            (x * x + y * y + zc * zc).any_lt(F8::splat(reach * reach))
         }
     }
 }
