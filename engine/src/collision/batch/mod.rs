@@ -28,6 +28,9 @@ use crate::robot::{Motion, Robot};
 use crate::world::Environment;
 use lanes::{Pose8, F8, LANES};
 
+/// Stamp of placements that never change (links that do not move).
+const STATIC: u32 = u32::MAX;
+
 /// Added to every radius (metres): the batch checker errs towards contact.
 pub const MARGIN: f32 = 1e-4;
 
@@ -104,9 +107,10 @@ pub struct BatchChecker {
 
 impl BatchChecker {
     /// A batch checker, or `None` when the environment holds an occupancy map or more than 64
-    /// objects (the scalar checker handles those).
+    /// objects, or a link has more than 64 sphere clusters (the scalar checker handles those).
     pub fn new(robot: &Robot, env: &Environment) -> Option<Self> {
-        if env.map().is_some() || env.objects().len() > 64 {
+        let clusters_per_link = robot.spheres().link_clusters.iter().map(|r| r.len());
+        if env.map().is_some() || env.objects().len() > 64 || clusters_per_link.max() > Some(64) {
             return None;
         }
         let links = robot.links();
@@ -258,12 +262,25 @@ impl BatchChecker {
             delta: vec![0.0; robot.dof()],
             avx2: has_avx2(),
         };
-        // Frames that never move have the same pose in every batch.
+        // Links that never move have the same pose, bound, clusters and spheres in every
+        // batch: placed once, stamped as always valid.
         for l in 0..n_links {
             if !sut.moves[l] && sut.frame[l] == l {
                 sut.fk_link(l);
             }
         }
+        sut.epoch = STATIC;
+        let moves_at_all = sut.moves.clone();
+        for l in (0..n_links).filter(|&l| !moves_at_all[l]) {
+            if let Some((c, _)) = sut.bound[l] {
+                sut.bounds[l] = sut.poses[sut.frame[l]].apply_const(c);
+            }
+            for ci in sut.link_clusters[l].clone() {
+                sut.place_cluster(l, ci);
+                sut.place_spheres(l, ci);
+            }
+        }
+        sut.epoch = 0;
         Some(sut)
     }
 
@@ -371,10 +388,14 @@ impl BatchChecker {
 
     #[inline(always)]
     fn check(&mut self) -> bool {
-        self.epoch = self.epoch.wrapping_add(1);
-        if self.epoch == 0 {
-            self.cluster_stamp.fill(0);
-            self.sphere_stamp.fill(0);
+        self.epoch += 1;
+        if self.epoch == STATIC {
+            // Stamps start again (those of links that never move stay valid).
+            for stamp in self.cluster_stamp.iter_mut().chain(&mut self.sphere_stamp) {
+                if *stamp != STATIC {
+                    *stamp = 0;
+                }
+            }
             self.epoch = 1;
         }
         for l in 0..self.parent.len() {
@@ -442,7 +463,7 @@ impl BatchChecker {
 
     #[inline(always)]
     fn place_cluster(&mut self, l: usize, ci: usize) {
-        if self.cluster_stamp[ci] != self.epoch {
+        if self.cluster_stamp[ci] < self.epoch {
             self.cluster_stamp[ci] = self.epoch;
             self.cluster_at[ci] = self.poses[self.frame[l]].apply_const(self.cluster[ci].0);
         }
@@ -450,9 +471,9 @@ impl BatchChecker {
 
     #[inline(always)]
     fn place_spheres(&mut self, l: usize, ci: usize) {
-        if self.sphere_stamp[ci] != self.epoch {
+        if self.sphere_stamp[ci] < self.epoch {
             self.sphere_stamp[ci] = self.epoch;
-            let pose = self.poses[self.frame[l]];
+            let pose = &self.poses[self.frame[l]];
             for s in self.cluster[ci].2.clone() {
                 self.sphere_at[s] = pose.apply_const(self.sphere[s].0);
             }
@@ -491,8 +512,11 @@ impl BatchChecker {
                     continue;
                 }
                 self.place_spheres(l, ci);
-                for s in self.cluster[ci].2.clone() {
-                    let (p, r) = (self.sphere_at[s], self.sphere[s].1);
+                let range = self.cluster[ci].2.clone();
+                for (&p, &(_, r)) in self.sphere_at[range.clone()]
+                    .iter()
+                    .zip(&self.sphere[range])
+                {
                     if penetrated(&self.objects, cluster_mask, p, r) != 0 {
                         return true;
                     }
@@ -510,8 +534,20 @@ impl BatchChecker {
                 self.bound[a].unwrap_or_default().1,
                 self.bound[b].unwrap_or_default().1,
             );
-            let (ba, bb) = (self.bounds_of(a), self.bounds_of(b));
+            let (ba, bb) = (self.bounds[a], self.bounds[b]);
             if !overlap(ba, ra, bb, rb) {
+                continue;
+            }
+            // The clusters of `b` within reach of `a`'s bound, as bits (at most 64 per link).
+            let clusters_b = self.link_clusters[b].clone();
+            let mut near_b = 0u64;
+            for (bit, cb) in clusters_b.clone().enumerate() {
+                self.place_cluster(b, cb);
+                if overlap(self.cluster_at[cb], self.cluster[cb].1, ba, ra) {
+                    near_b |= 1 << bit;
+                }
+            }
+            if near_b == 0 {
                 continue;
             }
             for ca in self.link_clusters[a].clone() {
@@ -520,25 +556,18 @@ impl BatchChecker {
                 if !overlap(pa, cra, bb, rb) {
                     continue;
                 }
-                for cb in self.link_clusters[b].clone() {
-                    self.place_cluster(b, cb);
+                let mut m = near_b;
+                while m != 0 {
+                    let cb = clusters_b.start + m.trailing_zeros() as usize;
+                    m &= m - 1;
                     let (pb, crb) = (self.cluster_at[cb], self.cluster[cb].1);
                     if !overlap(pa, cra, pb, crb) {
                         continue;
                     }
                     self.place_spheres(a, ca);
                     self.place_spheres(b, cb);
-                    for i in self.cluster[ca].2.clone() {
-                        // A sphere clear of the other cluster's bound is clear of its spheres.
-                        if !overlap(self.sphere_at[i], self.sphere[i].1, pb, crb) {
-                            continue;
-                        }
-                        for j in self.cluster[cb].2.clone() {
-                            let (si, sj) = (self.sphere_at[i], self.sphere_at[j]);
-                            if overlap(si, self.sphere[i].1, sj, self.sphere[j].1) {
-                                return true;
-                            }
-                        }
+                    if self.spheres_touch(ca, cb) {
+                        return true;
                     }
                 }
             }
@@ -546,14 +575,29 @@ impl BatchChecker {
         false
     }
 
-    /// A link's bound centre in lanes (links that do not move are placed on first use).
+    /// True when a sphere of cluster `ca` overlaps one of cluster `cb` in some lane (both
+    /// placed).
     #[inline(always)]
-    fn bounds_of(&mut self, l: usize) -> [F8; 3] {
-        if !self.moves[l] {
-            let (c, _) = self.bound[l].unwrap_or_default();
-            self.bounds[l] = self.poses[self.frame[l]].apply_const(c);
+    fn spheres_touch(&self, ca: usize, cb: usize) -> bool {
+        let (pb, crb) = (self.cluster_at[cb], self.cluster[cb].1);
+        let (range_a, range_b) = (self.cluster[ca].2.clone(), self.cluster[cb].2.clone());
+        let (at_a, at_b) = (
+            &self.sphere_at[range_a.clone()],
+            &self.sphere_at[range_b.clone()],
+        );
+        let (model_a, model_b) = (&self.sphere[range_a], &self.sphere[range_b]);
+        for (&pi, &(_, ri)) in at_a.iter().zip(model_a) {
+            // A sphere clear of the other cluster's bound is clear of its spheres.
+            if !overlap(pi, ri, pb, crb) {
+                continue;
+            }
+            for (&pj, &(_, rj)) in at_b.iter().zip(model_b) {
+                if overlap(pi, ri, pj, rj) {
+                    return true;
+                }
+            }
         }
-        self.bounds[l]
+        false
     }
 }
 
