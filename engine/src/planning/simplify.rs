@@ -41,20 +41,15 @@ pub fn simplify(checker: &mut Validity<'_>, path: &mut Vec<Vec<f64>>, rng: &mut 
         if robot.distance(&pa, &pb) >= old - 1e-9 {
             continue;
         }
-        if !(checker.is_valid(&pa)
-            && checker.is_valid(&pb)
-            && checker.motion_valid(&pa, &pb)
-            && checker.motion_valid(&path[i], &pa)
+        // The shortcut first (where collisions are), then the pieces of the old segments the
+        // shortcut keeps; each check takes its end state in the same pass.
+        if !(checker.reach_valid(&pa, &pb)
+            && checker.reach_valid(&path[i], &pa)
             && checker.motion_valid(&pb, &path[j + 1]))
         {
             continue;
         }
-        let mut next = Vec::with_capacity(path.len());
-        next.extend_from_slice(&path[..=i]);
-        next.push(pa.clone());
-        next.push(pb.clone());
-        next.extend_from_slice(&path[j + 1..]);
-        *path = next;
+        path.splice(i + 1..=j, [pa.clone(), pb.clone()]);
     }
     remove_redundant(checker, path);
 }
