@@ -21,8 +21,11 @@ pub struct Config {
     pub package_path: Vec<PathBuf>,
     /// Sphere protrusion, metres; 0 keeps the description's.
     pub sphere_protrusion: f64,
+    /// MoveIt joint_limits.yaml over the description's limits; empty for none.
+    pub joint_limits: PathBuf,
     pub map: MapConfig,
     pub planner: PlannerConfig,
+    pub trajectory: TrajectoryConfig,
     pub experience: ExperienceConfig,
     pub record: RecordConfig,
     pub monitor: MonitorConfig,
@@ -78,6 +81,30 @@ pub struct PlannerConfig {
     pub use_map: bool,
 }
 
+/// `[trajectory]`: how solved paths are timed (requests may lower the scaling factors).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrajectoryConfig {
+    pub velocity_scaling: f64,
+    pub acceleration_scaling: f64,
+    pub max_deviation: f64,
+    pub sample_period_s: f64,
+    pub default_acceleration: f64,
+}
+
+impl TrajectoryConfig {
+    /// The engine's timing parameters.
+    pub fn params(&self) -> ember_engine::trajectory::TimingParams {
+        ember_engine::trajectory::TimingParams {
+            velocity_scaling: self.velocity_scaling,
+            acceleration_scaling: self.acceleration_scaling,
+            max_deviation: self.max_deviation,
+            sample_period: self.sample_period_s,
+            default_acceleration: self.default_acceleration,
+        }
+    }
+}
+
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ExperienceConfig {
@@ -108,6 +135,8 @@ impl Config {
             package_paths: self.package_path.clone(),
             protrusion: (self.sphere_protrusion != 0.0).then_some(self.sphere_protrusion),
             sphere_cache: Default::default(),
+            joint_limits: (!self.joint_limits.as_os_str().is_empty())
+                .then(|| self.joint_limits.clone()),
         }
     }
 
@@ -190,6 +219,10 @@ impl Config {
         if self.map.max_points == 0 {
             return Err("key map.max_points must be at least 1".into());
         }
+        self.trajectory
+            .params()
+            .validate()
+            .map_err(|e| format!("[trajectory]: {e}"))?;
         Ok(())
     }
 }

@@ -13,6 +13,7 @@ pub mod planning;
 pub mod problems;
 pub mod robot;
 pub mod scene;
+pub mod trajectory;
 pub mod world;
 
 /// A pose: rotation and translation, metres, as used at every boundary of the engine.

@@ -23,6 +23,7 @@
 //! - a **URDF** (meshes or primitives) with an optional MoveIt **SRDF** and group: the way
 //!   users bring their robot ([`RobotSpec`]).
 
+use super::limits::{LimitEntry, LimitsFile};
 use super::mesh::PackagePaths;
 use super::spheres::cache::SphereCache;
 use super::spheres::{SphereModel, SpherizeParams};
@@ -111,6 +112,9 @@ pub struct RobotSpec {
     pub protrusion: Option<f64>,
     /// Where fitted spheres are cached.
     pub sphere_cache: SphereCache,
+    /// A MoveIt `joint_limits.yaml` overriding the description's velocity limits and adding
+    /// acceleration and jerk limits.
+    pub joint_limits: Option<PathBuf>,
 }
 
 /// The command-line options that name a robot, for any tool built on the engine (feature
@@ -133,6 +137,9 @@ pub struct RobotArgs {
     /// How far fitted spheres may stick out of the robot's geometry, metres [default: the robot file's, else 0.01].
     #[arg(long)]
     pub sphere_protrusion: Option<f64>,
+    /// MoveIt joint_limits.yaml: velocity, acceleration and jerk limits per joint (over the URDF's).
+    #[arg(long)]
+    pub joint_limits: Option<PathBuf>,
 }
 
 #[cfg(feature = "clap")]
@@ -149,6 +156,7 @@ impl RobotArgs {
             package_paths: self.package_path.clone(),
             protrusion: self.sphere_protrusion,
             sphere_cache: SphereCache::Default,
+            joint_limits: self.joint_limits.clone(),
         }
     }
 }
@@ -198,6 +206,9 @@ pub(crate) struct RobotFile {
     pub spheres: SpherizeParams,
     #[serde(default)]
     pub self_collision: SelfCollisionSection,
+    /// Per joint: MoveIt `joint_limits.yaml` keys (`max_velocity`, `max_acceleration`, ...).
+    #[serde(default)]
+    pub joint_limits: BTreeMap<String, LimitEntry>,
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -213,6 +224,16 @@ pub(crate) struct GroupSection {
 pub(crate) struct SelfCollisionSection {
     #[serde(default)]
     pub pairs: Vec<[String; 2]>,
+}
+
+/// Overrides the limits of the planning-group joints `entries` names (other joints, such as
+/// grippers in a MoveIt file, are not planned and are skipped).
+fn apply_limits(robot: &mut Robot, entries: &BTreeMap<String, LimitEntry>) {
+    for (v, limits) in robot.variables.iter().zip(robot.limits.iter_mut()) {
+        if let Some(entry) = entries.get(&v.name) {
+            *limits = limits.overridden_by(entry);
+        }
+    }
 }
 
 const FETCH_TOML: &str = include_str!("../../../config/robots/fetch/fetch.toml");
@@ -337,6 +358,7 @@ impl RobotSpec {
             })?;
             robot.named_states.push((name.clone(), q.clone()));
         }
+        apply_limits(&mut robot, &file.joint_limits);
         self.finish(robot, compute_pairs, &file.spheres, info, toml_name)
     }
 
@@ -436,6 +458,15 @@ impl RobotSpec {
         mut info: LoadInfo,
         params_name: &str,
     ) -> Result<Robot, LoadRobotError> {
+        if let Some(path) = &self.joint_limits {
+            let file =
+                LimitsFile::parse(&read(path)?).map_err(|message| LoadRobotError::RobotFile {
+                    path: path.display().to_string(),
+                    message: format!("not a MoveIt joint_limits.yaml: {message}"),
+                })?;
+            info.sources.push(path.display().to_string());
+            apply_limits(&mut robot, &file.joint_limits);
+        }
         let mut params = spheres.clone();
         if let Some(p) = self.protrusion {
             params.protrusion = p;

@@ -15,6 +15,7 @@
 pub mod config_space;
 pub mod description;
 pub mod fk;
+pub mod limits;
 pub mod mesh;
 pub mod primitives;
 pub mod self_collision;
@@ -135,6 +136,8 @@ pub struct Robot {
     pub(crate) group_name: String,
     pub(crate) links: Vec<Link>,
     pub(crate) variables: Vec<Variable>,
+    /// Per variable: velocity, acceleration and jerk limits.
+    pub(crate) limits: Vec<limits::JointLimits>,
     pub(crate) tip: usize,
     pub(crate) named_states: Vec<(String, Vec<f64>)>,
     pub(crate) self_pairs: Vec<(usize, usize)>,
@@ -165,6 +168,11 @@ impl Robot {
     /// Planning-group variables, in configuration order.
     pub fn variables(&self) -> &[Variable] {
         &self.variables
+    }
+
+    /// Per variable (configuration order): its velocity, acceleration and jerk limits.
+    pub fn limits(&self) -> &[limits::JointLimits] {
+        &self.limits
     }
 
     /// Links in topological order (parents first).

@@ -226,6 +226,7 @@ pub(crate) fn build(input: &BuildInput, info: &mut LoadInfo) -> Result<Built, Lo
 
     // Group variables.
     let mut variables = Vec::new();
+    let mut limits = Vec::new();
     let mut variable_of_joint: HashMap<&str, usize> = HashMap::new();
     for name in &group_joints {
         let j = urdf
@@ -268,6 +269,12 @@ pub(crate) fn build(input: &BuildInput, info: &mut LoadInfo) -> Result<Built, Lo
             lower,
             upper,
             continuous,
+        });
+        // URDF `<limit velocity>`: 0 (urdf-rs's default) when absent.
+        let velocity = j.limit.velocity;
+        limits.push(super::limits::JointLimits {
+            velocity: (velocity > 0.0).then_some(velocity),
+            ..Default::default()
         });
     }
     for name in input.fixed_joints.keys() {
@@ -426,6 +433,7 @@ pub(crate) fn build(input: &BuildInput, info: &mut LoadInfo) -> Result<Built, Lo
         group_name,
         links,
         variables,
+        limits,
         tip,
         named_states: Vec::new(),
         self_pairs,

@@ -7,6 +7,7 @@ mod map;
 mod moveit;
 mod planning;
 mod robot;
+mod trajectory;
 
 /// The repository's `tests/fixtures` folder.
 pub fn fixtures() -> std::path::PathBuf {
