@@ -127,6 +127,7 @@ fn measure(instance: &str, args: &Args, recordings: &std::path::Path) -> anyhow:
         method: Method::Uniform,
         time_limit_s: 5.0,
         seed: 1,
+        trajectory: None,
     };
     let request = PlanRequest {
         start,

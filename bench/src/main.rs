@@ -9,7 +9,8 @@
 //! - `nearest`: the planner's nearest-neighbour index against a linear scan;
 //! - `retrieval`: SPARK and FLAME retrieval time against database size (against linear scans);
 //! - `paper`: the paper's experiments (training-size sweep, retrieval scaling), tables and plots;
-//! - `validity --problems DIR...`: start/goal verdicts against an exact FCL mesh checker.
+//! - `validity --problems DIR...`: start/goal verdicts against an exact FCL mesh checker;
+//! - `trajectory`: time-optimal parameterisation time and durations against `toppra`.
 
 mod collision;
 mod daemon;
@@ -25,6 +26,7 @@ mod plot;
 mod python;
 mod retrieval;
 mod stats;
+mod trajectory;
 mod validity;
 
 use clap::{Parser, Subcommand};
@@ -58,6 +60,8 @@ enum Bench {
     Paper(paper::Args),
     /// Start/goal verdicts against an exact mesh checker on FCL (MoveIt's), same problems.
     Validity(validity::Args),
+    /// Trajectory parameterisation time per path and durations against toppra (same paths).
+    Trajectory(trajectory::Args),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -72,5 +76,6 @@ fn main() -> anyhow::Result<()> {
         Bench::Retrieval(a) => retrieval::run(a),
         Bench::Paper(a) => paper::run(a),
         Bench::Validity(a) => validity::run(a),
+        Bench::Trajectory(a) => trajectory::run(a),
     }
 }

@@ -104,6 +104,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         method: Method::Uniform,
         time_limit_s: 5.0,
         seed: 1,
+        trajectory: None,
     };
     for client in &clients {
         for _ in 0..50 {

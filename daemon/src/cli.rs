@@ -109,6 +109,30 @@ pub struct PlanArgs {
     /// Print the result as one JSON object.
     #[arg(long)]
     pub json: bool,
+    /// Fraction of the joint velocity limits the trajectory uses, (0, 1] (default: the
+    /// request's max_velocity_scaling_factor, else 1).
+    #[arg(long)]
+    pub velocity_scaling: Option<f64>,
+    /// Fraction of the joint acceleration limits, (0, 1] (default: the request's
+    /// max_acceleration_scaling_factor, else 1).
+    #[arg(long)]
+    pub acceleration_scaling: Option<f64>,
+    /// How far blended corners may pass from their waypoints (configuration-space distance;
+    /// 0 stops at every waypoint).
+    #[arg(long, default_value_t = 0.05)]
+    pub max_deviation: f64,
+    /// Trajectory sampling period, seconds.
+    #[arg(long, default_value_t = 0.1)]
+    pub sample_period: f64,
+    /// Acceleration limit of joints the description gives none.
+    #[arg(long, default_value_t = 1.0)]
+    pub default_acceleration: f64,
+    /// Return the path only (no timed trajectory).
+    #[arg(long)]
+    pub no_trajectory: bool,
+    /// Write the timed trajectory as a MoveIt RobotTrajectory YAML.
+    #[arg(long)]
+    pub trajectory_out: Option<PathBuf>,
 }
 
 #[derive(Debug, Args)]

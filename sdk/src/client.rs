@@ -61,6 +61,9 @@ pub struct PlanCall {
     pub time_limit_s: f64,
     /// Seed.
     pub seed: u64,
+    /// Ask for the path timed under the robot's limits: velocity and acceleration scaling
+    /// factors in (0, 1], 0 for the daemon's ([`wire::FLAG_TRAJECTORY`]).
+    pub trajectory: Option<(f64, f64)>,
 }
 
 /// The daemon's answer.
@@ -72,6 +75,9 @@ pub struct PlanReply {
     pub path: Vec<Vec<f64>>,
     /// The header as received (timings, counts, message).
     pub header: PlanResponseHeader,
+    /// The timed trajectory, when asked for and solved (`samples` empty when the daemon could
+    /// not time the path; the message says why).
+    pub trajectory: Option<wire::TrajectoryBlock>,
 }
 
 impl PlanReply {
@@ -246,6 +252,11 @@ impl Client {
                 0.0,
             ),
         };
+        let flags = if call.trajectory.is_some() {
+            flags | wire::FLAG_TRAJECTORY
+        } else {
+            flags
+        };
         let header = PlanRequestHeader {
             version: PROTOCOL_VERSION,
             dof: dof as u32,
@@ -262,6 +273,9 @@ impl Client {
         let mut values = call.start.clone();
         for g in &call.goals {
             values.extend_from_slice(g);
+        }
+        if let Some((v, a)) = call.trajectory {
+            values.extend_from_slice(&[v, a]);
         }
         self.plan_raw(header, &values, timeout)
     }
@@ -308,16 +322,31 @@ impl Client {
             if let Some(response) = pending.receive().map_err(transport)? {
                 let h = *response.user_header();
                 let data = response.payload();
-                let dof = h.dof as usize;
+                let (dof, waypoints) = (h.dof as usize, h.waypoints as usize);
+                let path_values = (dof * waypoints).min(data.len());
                 let path = if dof == 0 {
                     Vec::new()
                 } else {
-                    data.chunks_exact(dof).map(<[f64]>::to_vec).collect()
+                    data[..path_values]
+                        .chunks_exact(dof)
+                        .map(<[f64]>::to_vec)
+                        .collect()
+                };
+                let trajectory = if header.flags & wire::FLAG_TRAJECTORY != 0
+                    && data.len() > path_values
+                {
+                    Some(
+                        wire::TrajectoryBlock::decode(&data[path_values..], dof, waypoints)
+                            .map_err(|e| ClientError::Transport(format!("malformed reply: {e}")))?,
+                    )
+                } else {
+                    None
                 };
                 return Ok(PlanReply {
                     status: Status::from_code(h.status).unwrap_or(Status::Internal),
                     path,
                     header: h,
+                    trajectory,
                 });
             }
             if Instant::now() >= deadline {

@@ -196,6 +196,9 @@ pub struct PlanSummary {
     pub simplify_us: f64,
     /// Receipt to reply, µs.
     pub total_us: f64,
+    /// How long the timed trajectory takes to execute, seconds (0: none was asked for or
+    /// made).
+    pub duration_s: f64,
 }
 
 /// A decimated picture of the occupied map: one record per non-empty 4×4×4 leaf block (FLAME's

@@ -1,5 +1,6 @@
 //! Messages of session recordings (MCAP), shared by the daemon's recorder and readers: ROS 2 message types in CDR for the standard data
-//! (`sensor_msgs/msg/PointCloud2`, `sensor_msgs/msg/JointState`, `geometry_msgs/msg/PoseStamped`)
+//! (`sensor_msgs/msg/PointCloud2`, `sensor_msgs/msg/JointState`, `geometry_msgs/msg/PoseStamped`,
+//! `trajectory_msgs/msg/JointTrajectory`)
 //! and documented schemas of our own (`ember_msgs/msg/...`) for objects and plans, with their
 //! `ros2msg` schema texts, so ROS 2 tools and the Python `mcap` readers decode them.
 
@@ -44,6 +45,18 @@ pub fn schemas() -> Vec<(&'static str, String)> {
             with_deps("std_msgs/Header header\ngeometry_msgs/Pose pose\n", &[HEADER, TIME, POSE, POINT, QUAT]),
         ),
         (
+            "trajectory_msgs/msg/JointTrajectory",
+            with_deps(
+                "std_msgs/Header header\nstring[] joint_names\nJointTrajectoryPoint[] points\n",
+                &[
+                    HEADER,
+                    TIME,
+                    "MSG: trajectory_msgs/JointTrajectoryPoint\nfloat64[] positions\nfloat64[] velocities\nfloat64[] accelerations\nfloat64[] effort\nbuiltin_interfaces/Duration time_from_start\n",
+                    "MSG: builtin_interfaces/Duration\nint32 sec\nuint32 nanosec\n",
+                ],
+            ),
+        ),
+        (
             "ember_msgs/msg/ObjectUpdate",
             with_deps(
                 "# shape: 0 remove, 1 box (dims = size), 2 cylinder (radius, length), 3 sphere (radius), 4 capsule (radius, length)\nstd_msgs/Header header\nstring id\nuint32 shape\nfloat64[3] dims\ngeometry_msgs/Pose pose\n",
@@ -84,6 +97,18 @@ impl Time {
 
     pub fn ns(&self) -> u64 {
         self.sec.max(0) as u64 * 1_000_000_000 + self.nanosec as u64
+    }
+}
+
+impl Time {
+    /// A duration of `seconds` (non-negative) as `builtin_interfaces/Duration` (same layout).
+    pub fn from_secs(seconds: f64) -> Self {
+        Time::from_ns((seconds.max(0.0) * 1e9).round() as u64)
+    }
+
+    /// Seconds.
+    pub fn secs(&self) -> f64 {
+        self.sec as f64 + self.nanosec as f64 * 1e-9
     }
 }
 
@@ -255,6 +280,63 @@ pub struct PlanResponse {
     pub method: u32,
     pub message: String,
     pub path: Vec<f64>,
+}
+
+/// `trajectory_msgs/JointTrajectoryPoint` (`time_from_start` is a
+/// `builtin_interfaces/Duration`, laid out as [`Time`]).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct JointTrajectoryPoint {
+    pub positions: Vec<f64>,
+    pub velocities: Vec<f64>,
+    pub accelerations: Vec<f64>,
+    pub effort: Vec<f64>,
+    pub time_from_start: Time,
+}
+
+/// `trajectory_msgs/msg/JointTrajectory`: a plan's timed path, stamped with its request's
+/// receive time.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct JointTrajectory {
+    pub header: Header,
+    pub joint_names: Vec<String>,
+    pub points: Vec<JointTrajectoryPoint>,
+}
+
+impl JointTrajectory {
+    /// The message of a trajectory block, for `joint_names`, stamped `stamp_ns`.
+    pub fn from_block(
+        stamp_ns: u64,
+        joint_names: Vec<String>,
+        b: &crate::wire::TrajectoryBlock,
+    ) -> Self {
+        JointTrajectory {
+            header: Header {
+                stamp: Time::from_ns(stamp_ns),
+                frame_id: "base_link".into(),
+            },
+            joint_names,
+            points: (0..b.times.len())
+                .map(|k| JointTrajectoryPoint {
+                    positions: b.positions[k].clone(),
+                    velocities: b.velocities[k].clone(),
+                    accelerations: b.accelerations[k].clone(),
+                    effort: Vec::new(),
+                    time_from_start: Time::from_secs(b.times[k]),
+                })
+                .collect(),
+        }
+    }
+
+    /// True when `b` holds the same samples (times to the nanosecond the message keeps).
+    pub fn matches(&self, b: &crate::wire::TrajectoryBlock) -> bool {
+        self.points.len() == b.times.len()
+            && self.points.iter().enumerate().all(|(k, p)| {
+                p.time_from_start == Time::from_secs(b.times[k])
+                    && p.positions == b.positions[k]
+                    && p.velocities == b.velocities[k]
+                    && p.accelerations == b.accelerations[k]
+            })
+    }
 }
 
 /// CDR (little endian) with the encapsulation header, as ROS 2 writes it.

@@ -169,6 +169,8 @@ pub enum Event {
     PlanRequest(PlanRequest),
     /// A plan reply as sent.
     PlanResponse(PlanResponse),
+    /// A plan's timed trajectory as sent (after its reply, same stamp).
+    PlanTrajectory(recording::JointTrajectory),
 }
 
 /// A recording loaded in memory.
@@ -257,6 +259,9 @@ impl Session {
                 }
                 ("/ember/plan_response", _) => {
                     Event::PlanResponse(recording::decode(&m.data).map_err(bad)?)
+                }
+                ("/ember/plan_trajectory", _) => {
+                    Event::PlanTrajectory(recording::decode(&m.data).map_err(bad)?)
                 }
                 (_, Some(Role::Joints)) => {
                     let js: recording::JointState = recording::decode(&m.data).map_err(bad)?;

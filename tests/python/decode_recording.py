@@ -16,6 +16,7 @@ EXPECTED = {
     "/ember/objects": "ember_msgs/msg/ObjectUpdate",
     "/ember/plan_request": "ember_msgs/msg/PlanRequest",
     "/ember/plan_response": "ember_msgs/msg/PlanResponse",
+    "/ember/plan_trajectory": "trajectory_msgs/msg/JointTrajectory",
 }
 
 
@@ -30,6 +31,14 @@ def main(path):
                 assert decoded.width * decoded.height * decoded.point_step == len(decoded.data)
             if channel.topic == "/ember/plan_response" and decoded.status == 0:
                 assert len(decoded.path) == decoded.waypoints * decoded.dof > 0
+            if channel.topic == "/ember/plan_trajectory":
+                points = decoded.points
+                assert len(decoded.joint_names) == 8 and len(points) >= 2
+                times = [p.time_from_start.sec + p.time_from_start.nanosec * 1e-9 for p in points]
+                assert times[0] == 0 and all(a < b for a, b in zip(times, times[1:])), times
+                assert all(len(p.positions) == len(p.velocities) == len(p.accelerations) == 8
+                           for p in points)
+                assert max(abs(v) for v in points[-1].velocities) == 0
             if channel.topic == "/ember/joints":
                 assert len(decoded.name) == len(decoded.position) == 8
     missing = [t for t in EXPECTED if t not in counts]

@@ -226,8 +226,13 @@ fn draw(watched: &BTreeMap<String, Watched>, connect: &[String]) {
         }
         out += &format!("\nlast plans of {name}:\n");
         for p in &w.plans {
+            let executes = if p.duration_s > 0.0 {
+                format!(", executes in {:.2} s", p.duration_s)
+            } else {
+                String::new()
+            };
             out += &format!(
-                "  #{:<6} {:<8} {:<7} {:<18} {:>9.2} ms  retrieval {:>8.1} µs  {} waypoints\n",
+                "  #{:<6} {:<8} {:<7} {:<18} {:>9.2} ms  retrieval {:>8.1} µs  {} waypoints{executes}\n",
                 p.seq,
                 p.goal,
                 p.method,

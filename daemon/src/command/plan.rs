@@ -3,6 +3,7 @@
 use crate::cli::PlanArgs;
 use ember_engine::planning::{self, PlanRequest, PlannerParams, UniformSampler};
 use ember_engine::scene::{moveit, Scene};
+use ember_engine::trajectory::TimingParams;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
@@ -24,6 +25,16 @@ pub fn run(args: PlanArgs) -> anyhow::Result<ExitCode> {
         .time_limit
         .or(request.allowed_planning_time)
         .unwrap_or(10.0);
+    let timing = (!args.no_trajectory).then_some(TimingParams {
+        velocity_scaling: args.velocity_scaling.or(request.scaling.0).unwrap_or(1.0),
+        acceleration_scaling: args
+            .acceleration_scaling
+            .or(request.scaling.1)
+            .unwrap_or(1.0),
+        max_deviation: args.max_deviation,
+        sample_period: args.sample_period,
+        default_acceleration: args.default_acceleration,
+    });
     let req = PlanRequest {
         start: request.start,
         goal: request.goal,
@@ -31,6 +42,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<ExitCode> {
             seed: args.seed,
             time_limit: Duration::from_secs_f64(time_limit.max(0.0)),
             simplify: !args.no_simplify,
+            timing,
             ..Default::default()
         },
     };
@@ -40,10 +52,30 @@ pub fn run(args: PlanArgs) -> anyhow::Result<ExitCode> {
     match outcome {
         Ok(res) => {
             let s = &res.stats;
+            let trajectory = match &res.trajectory {
+                Some(Ok(t)) => {
+                    if let Some(out) = &args.trajectory_out {
+                        std::fs::write(out, moveit::trajectory_to_yaml(t))
+                            .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", out.display()))?;
+                    }
+                    Some(t)
+                }
+                Some(Err(e)) => {
+                    eprintln!("warning: the path could not be timed: {e}");
+                    None
+                }
+                None => None,
+            };
             if args.json {
                 let v = serde_json::json!({
                     "status": "solved",
                     "path": res.path,
+                    "trajectory": trajectory.map(|t| serde_json::json!({
+                        "joint_names": t.joint_names, "duration_s": t.duration,
+                        "times": t.times, "positions": t.positions,
+                        "velocities": t.velocities, "accelerations": t.accelerations,
+                        "waypoint_times": t.waypoint_times,
+                    })),
                     "total_ms": total_ms,
                     "stats": {
                         "iterations": s.iterations, "tree_nodes": s.tree_nodes,
@@ -53,6 +85,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<ExitCode> {
                         "neighbour_ms": s.neighbour_s * 1e3, "validate_ms": s.validate_s * 1e3,
                         "other_ms": s.other_s() * 1e3, "simplify_ms": s.simplify_s * 1e3,
                         "length_before": s.length_before, "length_after": s.length_after,
+                        "timing_ms": s.timing_s * 1e3,
                     }
                 });
                 println!("{v}");
@@ -74,7 +107,19 @@ pub fn run(args: PlanArgs) -> anyhow::Result<ExitCode> {
                 println!("joints: {}", names.join(" "));
                 for (i, q) in res.path.iter().enumerate() {
                     let vals: Vec<String> = q.iter().map(|v| format!("{v:.5}")).collect();
-                    println!("{i:4}: {}", vals.join(" "));
+                    let at = trajectory.map_or(String::new(), |t| {
+                        format!("  (t = {:.3} s)", t.waypoint_times[i])
+                    });
+                    println!("{i:4}: {}{at}", vals.join(" "));
+                }
+                if let Some(t) = trajectory {
+                    println!(
+                        "trajectory: executes in {:.3} s, {} samples every {} s (timed in {:.3} ms)",
+                        t.duration,
+                        t.times.len(),
+                        args.sample_period,
+                        s.timing_s * 1e3
+                    );
                 }
             }
             Ok(ExitCode::SUCCESS)

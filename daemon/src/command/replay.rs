@@ -2,7 +2,8 @@
 //! objects, joint states, clouds (with their sensor poses) and plan requests, in recorded order,
 //! as fast as possible or at a multiple of real time. Before each plan request it waits until the
 //! daemon has taken everything sent before it, so the world matches the recording; with
-//! `--check` each reply is compared with the recorded one (same seed, same world: same path).
+//! `--check` each reply is compared with the recorded one (same seed, same world: same path,
+//! and the same timed trajectory when the request asked for one).
 
 use super::group_order;
 use crate::cli::ReplayArgs;
@@ -47,6 +48,8 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
     let mut sent = 0u64;
     let (mut plans, mut reproduced, mut messages) = (0usize, 0usize, 0usize);
     let mut last_reply: Option<(u64, Vec<f64>, u32)> = None;
+    let mut last_trajectory: Option<(u64, ember_sdk::wire::TrajectoryBlock)> = None;
+    let (mut timed, mut timed_reproduced) = (0usize, 0usize);
     for file in &args.files {
         let session = Session::open(file)?;
         let mut clock: Option<(u64, Instant)> = None;
@@ -100,6 +103,7 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
                     let timeout = Duration::from_secs_f64(r.time_limit_s.max(1.0) + 30.0);
                     let reply = client.plan_raw(header, &r.values, timeout)?;
                     last_reply = Some((r.header.stamp.ns(), reply.path.concat(), reply.header.status));
+                    last_trajectory = reply.trajectory.map(|t| (r.header.stamp.ns(), t));
                     plans += 1;
                 }
                 Event::PlanResponse(recorded) => {
@@ -111,15 +115,30 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
                         }
                     }
                 }
+                Event::PlanTrajectory(recorded) => {
+                    timed += 1;
+                    match last_trajectory.take() {
+                        Some((stamp, t)) if stamp == recorded.header.stamp.ns() && recorded.matches(&t) => {
+                            timed_reproduced += 1;
+                        }
+                        _ if args.check => eprintln!("plan {plans}: trajectory differs from the recording"),
+                        _ => {}
+                    }
+                }
             }
             Ok(())
         })?;
     }
     println!("messages replayed: {messages}");
     println!("plans reproduced: {reproduced}/{plans}");
-    Ok(if args.check && reproduced != plans {
-        ExitCode::from(1)
-    } else {
-        ExitCode::SUCCESS
-    })
+    if timed > 0 {
+        println!("trajectories reproduced: {timed_reproduced}/{timed}");
+    }
+    Ok(
+        if args.check && (reproduced != plans || timed_reproduced != timed) {
+            ExitCode::from(1)
+        } else {
+            ExitCode::SUCCESS
+        },
+    )
 }

@@ -231,7 +231,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
                     plan::message(&a.header)
                 );
             }
-            let flat: Vec<f64> = a.path.concat();
+            let flat = a.payload();
             match active.loan_slice_uninit(flat.len()) {
                 Ok(mut response) => {
                     *response.user_header_mut() = a.header;
@@ -252,6 +252,12 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
                     recv_ns: ember_sdk::client::now_ns(),
                     response: plan::response_message(recv_ns, &a),
                 });
+                if let Some(trajectory) = plan::trajectory_message(recv_ns, &robot, &a) {
+                    r.record(Record::PlanTrajectory {
+                        recv_ns: ember_sdk::client::now_ns(),
+                        trajectory,
+                    });
+                }
             }
             if let Some(m) = &monitor {
                 m.plan(plan_summary(&config.instance, seq, recv_ns, &h, &a));

@@ -85,7 +85,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<ExitCode> {
                         plans += 1;
                     }
                 }
-                Event::PlanRequest(_) => {}
+                Event::PlanRequest(_) | Event::PlanTrajectory(_) => {}
             }
             Ok(())
         })?;

@@ -224,5 +224,6 @@ pub fn plan_summary(
         planning_us: h.planning_us,
         simplify_us: h.simplify_us,
         total_us: h.total_us,
+        duration_s: answer.trajectory.as_ref().map_or(0.0, |t| t.duration),
     }
 }

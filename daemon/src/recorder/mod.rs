@@ -56,6 +56,11 @@ pub enum Record {
         recv_ns: u64,
         response: messages::PlanResponse,
     },
+    /// A plan's timed trajectory as sent.
+    PlanTrajectory {
+        recv_ns: u64,
+        trajectory: messages::JointTrajectory,
+    },
 }
 
 /// Recorder settings.
@@ -150,13 +155,17 @@ struct SessionWriter {
     path: PathBuf,
 }
 
-const TOPICS: [(&str, &str); 6] = [
+const TOPICS: [(&str, &str); 7] = [
     ("/ember/cloud", "sensor_msgs/msg/PointCloud2"),
     ("/ember/cloud_pose", "geometry_msgs/msg/PoseStamped"),
     ("/ember/joints", "sensor_msgs/msg/JointState"),
     ("/ember/objects", "ember_msgs/msg/ObjectUpdate"),
     ("/ember/plan_request", "ember_msgs/msg/PlanRequest"),
     ("/ember/plan_response", "ember_msgs/msg/PlanResponse"),
+    (
+        "/ember/plan_trajectory",
+        "trajectory_msgs/msg/JointTrajectory",
+    ),
 ];
 
 impl SessionWriter {
@@ -267,6 +276,18 @@ fn write_record(w: &mut SessionWriter, r: Record) -> anyhow::Result<u64> {
         }
         Record::PlanResponse { recv_ns, response } => {
             w.write("/ember/plan_response", recv_ns, recv_ns, &encode(&response))?;
+        }
+        Record::PlanTrajectory {
+            recv_ns,
+            trajectory,
+        } => {
+            let stamp = trajectory.header.stamp.ns();
+            w.write(
+                "/ember/plan_trajectory",
+                recv_ns,
+                stamp,
+                &encode(&trajectory),
+            )?;
         }
     }
     Ok(n)

@@ -12,8 +12,11 @@ use ember_engine::planning::{
 };
 use ember_engine::robot::{ConfigError, Robot};
 use ember_engine::scene::pose_from_xyz_xyzw;
+use ember_engine::trajectory::{TimingParams, Trajectory};
+use ember_sdk::wire::plan::MAX_PLAN_VALUES;
 use ember_sdk::wire::{
-    self, GoalKind, Method, PlanRequestHeader, PlanResponseHeader, StatusReply, PROTOCOL_VERSION,
+    self, GoalKind, Method, PlanRequestHeader, PlanResponseHeader, StatusReply, TrajectoryBlock,
+    PROTOCOL_VERSION,
 };
 use ember_sdk::Status;
 use std::time::{Duration, Instant};
@@ -29,6 +32,19 @@ pub struct Experience {
 pub struct Answer {
     pub header: PlanResponseHeader,
     pub path: Vec<Vec<f64>>,
+    /// The timed path, when the request asked for it and the plan was solved.
+    pub trajectory: Option<TrajectoryBlock>,
+}
+
+impl Answer {
+    /// The response payload: the path, then the trajectory block when there is one.
+    pub fn payload(&self) -> Vec<f64> {
+        let mut out = self.path.concat();
+        if let Some(t) = &self.trajectory {
+            t.encode(&mut out);
+        }
+        out
+    }
 }
 
 fn fail(status: Status, message: impl AsRef<str>) -> Answer {
@@ -42,6 +58,7 @@ fn fail(status: Status, message: impl AsRef<str>) -> Answer {
     Answer {
         header,
         path: Vec::new(),
+        trajectory: None,
     }
 }
 
@@ -59,6 +76,7 @@ fn status_of(e: &PlanError) -> Status {
         PlanError::UnreachablePose { .. } => Status::UnreachablePose,
         PlanError::Timeout { .. } => Status::Timeout,
         PlanError::InvalidPath(_) => Status::Internal,
+        PlanError::InvalidTiming(_) => Status::BadRequest,
     }
 }
 
@@ -123,14 +141,16 @@ pub fn answer(
     if goal_kind == GoalKind::Joints && goals == 0 {
         return fail(Status::BadRequest, "joint goal without goal configurations");
     }
-    if values.len() != dof * (1 + goals) {
+    let timed = h.flags & wire::FLAG_TRAJECTORY != 0;
+    let expected = dof * (1 + goals) + if timed { 2 } else { 0 };
+    if values.len() != expected {
         return fail(
             Status::BadRequest,
             format!(
-                "payload holds {} values, expected {} ({} configurations of {dof})",
+                "payload holds {} values, expected {expected} ({} configurations of {dof}{})",
                 values.len(),
-                dof * (1 + goals),
-                1 + goals
+                1 + goals,
+                if timed { " and 2 scaling factors" } else { "" }
             ),
         );
     }
@@ -145,10 +165,27 @@ pub fn answer(
             "the request holds a NaN or infinite number",
         );
     }
+    let timing = if timed {
+        // 0 keeps the configured factor; anything else must be in (0, 1].
+        let configured = config.trajectory.params();
+        let pick = |v: f64, default: f64| if v == 0.0 { default } else { v };
+        let n = values.len();
+        let timing = TimingParams {
+            velocity_scaling: pick(values[n - 2], configured.velocity_scaling),
+            acceleration_scaling: pick(values[n - 1], configured.acceleration_scaling),
+            ..configured
+        };
+        if let Err(e) = timing.validate() {
+            return fail(Status::BadRequest, e.to_string());
+        }
+        Some(timing)
+    } else {
+        None
+    };
     let start = values[..dof].to_vec();
     let goal = match goal_kind {
         GoalKind::Joints => Goal::Joints(
-            values[dof..]
+            values[dof..dof * (1 + goals)]
                 .chunks_exact(dof)
                 .map(<[f64]>::to_vec)
                 .collect(),
@@ -200,6 +237,7 @@ pub fn answer(
             time_limit: Duration::from_secs_f64(time_limit.min(3600.0)),
             range: config.planner.range,
             simplify: config.planner.simplify,
+            timing,
             ..Default::default()
         },
     };
@@ -222,8 +260,19 @@ pub fn answer(
                 method: method as u32,
                 ..Default::default()
             };
+            let (trajectory, timing_note) = match &res.trajectory {
+                None => (None, String::new()),
+                Some(Ok(t)) => (
+                    Some(block_of(t, res.path.len())),
+                    format!(", executes in {:.2} s", t.duration),
+                ),
+                Some(Err(e)) => (
+                    Some(TrajectoryBlock::default()),
+                    format!("; not timed: {e}"),
+                ),
+            };
             let msg = format!(
-                "solved: {} waypoints, {} iterations",
+                "solved: {} waypoints, {} iterations{timing_note}",
                 res.path.len(),
                 s.iterations
             );
@@ -246,6 +295,7 @@ pub fn answer(
             Answer {
                 header,
                 path: res.path,
+                trajectory,
             }
         }
         Err(e) => {
@@ -256,6 +306,34 @@ pub fn answer(
             a
         }
     }
+}
+
+/// The trajectory as it goes on the wire, resampled coarser when the samples would not fit in
+/// a response beside the path.
+fn block_of(t: &Trajectory, waypoints: usize) -> TrajectoryBlock {
+    let dof = t.joint_names.len();
+    let room = MAX_PLAN_VALUES.saturating_sub(waypoints * dof);
+    let mut block = TrajectoryBlock {
+        duration: t.duration,
+        times: t.times.clone(),
+        positions: t.positions.clone(),
+        velocities: t.velocities.clone(),
+        accelerations: t.accelerations.clone(),
+        waypoint_times: t.waypoint_times.clone(),
+    };
+    let mut samples = block.times.len();
+    while TrajectoryBlock::len_for(samples, dof, waypoints) > room && samples > 2 {
+        samples = samples.div_ceil(2);
+        let times: Vec<f64> = (0..samples)
+            .map(|k| t.duration * k as f64 / (samples - 1) as f64)
+            .collect();
+        let states: Vec<_> = times.iter().map(|&x| t.state_at(x)).collect();
+        block.positions = states.iter().map(|s| s.0.clone()).collect();
+        block.velocities = states.iter().map(|s| s.1.clone()).collect();
+        block.accelerations = states.iter().map(|s| s.2.clone()).collect();
+        block.times = times;
+    }
+    block
 }
 
 /// The status reply.
@@ -337,4 +415,18 @@ pub fn response_message(recv_ns: u64, a: &Answer) -> ember_sdk::recording::PlanR
         message: message(h),
         path: a.path.concat(),
     }
+}
+
+/// The answer's trajectory as a recorded `trajectory_msgs/msg/JointTrajectory` (stamped with
+/// its request's receive time), when it has one with samples.
+pub fn trajectory_message(
+    recv_ns: u64,
+    robot: &Robot,
+    a: &Answer,
+) -> Option<ember_sdk::recording::JointTrajectory> {
+    let block = a.trajectory.as_ref().filter(|b| !b.times.is_empty())?;
+    let names = robot.variables().iter().map(|v| v.name.clone()).collect();
+    Some(ember_sdk::recording::JointTrajectory::from_block(
+        recv_ns, names, block,
+    ))
 }

@@ -96,6 +96,8 @@ impl Drop for Daemon {
 
 /// Replays `file` into daemon `d` with `--check` and asserts that all `plans` plans come back
 /// bit for bit.
+/// Replays `file` into `d` with `--check`: all `plans` reproduced, and every recorded
+/// trajectory too.
 pub fn replay_check(file: &std::path::Path, d: &Daemon, plans: usize) {
     let out = crate::ember(&[
         "replay",
@@ -110,6 +112,15 @@ pub fn replay_check(file: &std::path::Path, d: &Daemon, plans: usize) {
         "{text}{}",
         String::from_utf8_lossy(&out.stderr)
     );
+    if let Some(line) = text
+        .lines()
+        .find(|l| l.starts_with("trajectories reproduced: "))
+    {
+        let (k, n) = line["trajectories reproduced: ".len()..]
+            .split_once('/')
+            .expect("k/n");
+        assert_eq!(k, n, "{text}");
+    }
 }
 
 pub fn table_scene() -> Scene {
@@ -182,6 +193,7 @@ pub fn uniform_call(goal: Vec<f64>, seed: u64) -> PlanCall {
         method: Method::Uniform,
         time_limit_s: 10.0,
         seed,
+        trajectory: None,
     }
 }
 
@@ -308,6 +320,21 @@ fn every_bad_input_gets_its_own_status_and_the_daemon_keeps_serving() {
         Status::BadRequest,
         "unknown flag bits are refused"
     );
+    // A trajectory request: two scaling factors close the payload, each in (0, 1] or 0.
+    let timed = PlanRequestHeader {
+        flags: ember_sdk::wire::FLAG_TRAJECTORY,
+        ..header
+    };
+    assert_eq!(status(timed, &good), Status::BadRequest, "factors missing");
+    let fast: Vec<f64> = good.iter().copied().chain([1.5, 1.0]).collect();
+    let reply = client.plan_raw(timed, &fast, t).unwrap();
+    assert_eq!(reply.status, Status::BadRequest);
+    assert_eq!(
+        reply.message(),
+        "velocity scaling factor 1.5 is outside (0, 1]"
+    );
+    let nan_factor: Vec<f64> = good.iter().copied().chain([0.5, f64::NAN]).collect();
+    assert_eq!(status(timed, &nan_factor), Status::NotFinite);
     let mut nan = good.clone();
     nan[3] = f64::NAN;
     assert_eq!(status(header, &nan), Status::NotFinite);

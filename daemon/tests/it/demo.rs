@@ -62,6 +62,13 @@ fn the_demo_plans_with_every_method_through_the_daemon_and_keeps_its_session() {
         assert!(median > 0.0 && mean > 0.0, "{method}: {median} {mean}");
         let retrieval: f64 = r["retrieval_us"].parse().unwrap();
         assert!(retrieval.is_finite() && retrieval >= 0.0);
+        // Every solved plan came back timed, and the robot takes seconds, not ms, to run it.
+        assert_eq!(r["timed"], r["solved"], "{method}");
+        let executes: f64 = r["median_duration_s"].parse().unwrap();
+        assert!(
+            executes > 0.5 && executes < 60.0,
+            "{method}: runs {executes} s"
+        );
     }
     let files = result_line(&stdout, "recording=");
     assert_eq!(PathBuf::from(&files["database"]), db);
@@ -76,6 +83,7 @@ fn the_demo_plans_with_every_method_through_the_daemon_and_keeps_its_session() {
     assert!(recording.starts_with(&record), "{}", recording.display());
     let session = Session::open(&recording).unwrap();
     let (mut clouds, mut objects, mut joints, mut requests, mut no_learn) = (0, 0, 0, 0, 0);
+    let (mut solved, mut trajectories) = (0, 0);
     session
         .for_each(
             false,
@@ -92,7 +100,11 @@ fn the_demo_plans_with_every_method_through_the_daemon_and_keeps_its_session() {
                         requests += 1;
                         no_learn += (r.flags & FLAG_NO_LEARN != 0) as usize;
                     }
-                    Event::PlanResponse(_) => {}
+                    Event::PlanResponse(r) => solved += (r.status == 0) as usize,
+                    Event::PlanTrajectory(t) => {
+                        assert!(t.points.len() >= 2);
+                        trajectories += 1;
+                    }
                 }
                 Ok(())
             },
@@ -106,6 +118,10 @@ fn the_demo_plans_with_every_method_through_the_daemon_and_keeps_its_session() {
     assert!(
         clouds >= 3 && joints > 0 && objects >= 10,
         "{clouds} clouds, {joints} joint states, {objects} object updates"
+    );
+    assert_eq!(
+        trajectories, solved,
+        "every solved plan is timed and recorded"
     );
 
     // The session replays into a fresh daemon with every plan reproduced bit for bit (the

@@ -115,6 +115,7 @@ fn a_watcher_sees_status_plans_objects_map_and_liveliness() {
                 method: Method::Uniform,
                 time_limit_s: 10.0,
                 seed: 3,
+                trajectory: None,
             },
             Duration::from_secs(20),
         )

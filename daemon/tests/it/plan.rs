@@ -24,6 +24,72 @@ fn plan_prints_a_solved_path() {
 }
 
 #[test]
+fn plan_prints_and_exports_the_timed_trajectory() {
+    let dir = std::env::temp_dir().join(format!("ember-traj-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let yaml = dir.join("trajectory.yaml");
+    let out = ember(&[
+        "plan",
+        "--scene",
+        &fixture("scene.yaml"),
+        "--request",
+        &fixture("request_joint.yaml"),
+        "--json",
+        "--velocity-scaling",
+        "0.5",
+        "--trajectory-out",
+        yaml.to_str().unwrap(),
+    ]);
+    let v = crate::json_output(&out);
+    let t = &v["trajectory"];
+    let duration = t["duration_s"].as_f64().unwrap();
+    let times = t["times"].as_array().unwrap();
+    assert!(duration > 0.0 && times.len() >= 2, "{t}");
+    assert_eq!(times.last().unwrap().as_f64(), Some(duration));
+    assert_eq!(t["positions"][0], v["path"][0], "starts at the start");
+    assert_eq!(
+        t["waypoint_times"].as_array().unwrap().len(),
+        v["path"].as_array().unwrap().len()
+    );
+    // The MoveIt export: every sample with its time, velocities and accelerations.
+    let text = std::fs::read_to_string(&yaml).unwrap();
+    let doc: serde_yaml_ng::Value = serde_yaml_ng::from_str(&text).unwrap();
+    let points = doc["joint_trajectory"]["points"].as_sequence().unwrap();
+    assert_eq!(points.len(), times.len());
+    let last = &points[points.len() - 1];
+    let secs = last["time_from_start"]["sec"].as_f64().unwrap()
+        + last["time_from_start"]["nanosec"].as_f64().unwrap() * 1e-9;
+    assert!((secs - duration).abs() < 1e-6);
+    assert_eq!(last["velocities"].as_sequence().unwrap().len(), 8);
+    assert_eq!(last["accelerations"].as_sequence().unwrap().len(), 8);
+    // Half the velocity limits: slower than at full speed.
+    let full = crate::json_output(&ember(&[
+        "plan",
+        "--scene",
+        &fixture("scene.yaml"),
+        "--request",
+        &fixture("request_joint.yaml"),
+        "--json",
+    ]));
+    assert!(full["trajectory"]["duration_s"].as_f64().unwrap() < duration);
+    let bad = ember(&[
+        "plan",
+        "--scene",
+        &fixture("scene.yaml"),
+        "--request",
+        &fixture("request_joint.yaml"),
+        "--acceleration-scaling",
+        "2",
+    ]);
+    let text = String::from_utf8_lossy(&bad.stdout);
+    assert!(
+        text.contains("acceleration scaling factor 2 is outside (0, 1]"),
+        "{text}"
+    );
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+#[test]
 fn pose_request_is_planned() {
     let out = ember(&[
         "plan",

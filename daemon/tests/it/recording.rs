@@ -57,10 +57,24 @@ fn a_session_is_recorded_and_decodes() {
         method: Method::Uniform,
         time_limit_s: 10.0,
         seed: 5,
+        trajectory: Some((0.5, 0.0)),
     };
     let reply = client.plan(&call, Duration::from_secs(20)).unwrap();
     assert_eq!(reply.status, Status::Ok);
-    let s = wait_for(&client, "the recorder", |s| s.recorded >= 7);
+    // The timed trajectory came with the path: from the start to the goal, at rest at both ends.
+    let timed = reply
+        .trajectory
+        .clone()
+        .expect("a trajectory was asked for");
+    assert!(
+        timed.duration > 0.0 && timed.times.len() >= 2,
+        "{}",
+        reply.message()
+    );
+    assert_eq!(timed.positions[0], TUCK.to_vec());
+    assert_eq!(timed.waypoint_times.len(), reply.path.len());
+    assert!(timed.velocities.last().unwrap().iter().all(|v| *v == 0.0));
+    let s = wait_for(&client, "the recorder", |s| s.recorded >= 8);
     assert_eq!(s.recording_dropped, 0);
     drop(client);
     d.signal("-TERM");
@@ -77,6 +91,7 @@ fn a_session_is_recorded_and_decodes() {
         ("/ember/cloud_pose", 1),
         ("/ember/plan_request", 1),
         ("/ember/plan_response", 1),
+        ("/ember/plan_trajectory", 1),
     ] {
         assert_eq!(counts.get(topic), Some(&n), "{topic}: {counts:?}");
     }
@@ -84,7 +99,7 @@ fn a_session_is_recorded_and_decodes() {
     let summary = mcap::Summary::read(&bytes)
         .unwrap()
         .expect("summary written on a clean stop");
-    assert_eq!(summary.channels.len(), 6);
+    assert_eq!(summary.channels.len(), 7);
     assert!(summary
         .chunk_indexes
         .iter()
@@ -96,6 +111,11 @@ fn a_session_is_recorded_and_decodes() {
                 let resp: recording::PlanResponse = recording::decode(&m.data).unwrap();
                 assert_eq!(resp.status, 0);
                 assert_eq!(resp.path, reply.path.concat());
+            }
+            "/ember/plan_trajectory" => {
+                let t: recording::JointTrajectory = recording::decode(&m.data).unwrap();
+                assert!(t.matches(&timed), "the recorded trajectory is the one sent");
+                assert_eq!(t.joint_names[0], "torso_lift_joint");
             }
             "/ember/cloud" => {
                 let cloud: recording::PointCloud2 = recording::decode(&m.data).unwrap();
@@ -248,6 +268,7 @@ fn training_from_a_recording_fills_the_databases() {
         method: Method::Uniform,
         time_limit_s: 10.0,
         seed: 2,
+        trajectory: None,
     };
     assert_eq!(
         client.plan(&call, Duration::from_secs(20)).unwrap().status,
@@ -514,6 +535,7 @@ fn a_ros2_bag_replays_through_a_topic_map() {
         method: Method::Uniform,
         time_limit_s: 5.0,
         seed: 1,
+        trajectory: None,
     };
     assert_eq!(
         client
@@ -561,7 +583,7 @@ fn the_fixture_session_reads_in_process() {
                     Event::PlanResponse(r) => {
                         solved += (r.status == 0 && r.waypoints >= 2) as usize
                     }
-                    Event::Joints { .. } => {}
+                    Event::Joints { .. } | Event::PlanTrajectory(_) => {}
                 }
                 Ok(())
             },

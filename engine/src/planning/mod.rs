@@ -16,6 +16,7 @@ pub mod nearest;
 pub mod rrt_connect;
 pub mod sampler;
 pub mod simplify;
+mod timing;
 pub mod validity;
 
 pub use ik::IkParams;
@@ -24,6 +25,7 @@ pub use sampler::{PlannerRng, Sampler, UniformSampler};
 use crate::collision::checker::{Contact, DEFAULT_RESOLUTION};
 use crate::collision::exact::ExactChecker;
 use crate::robot::{ConfigError, Robot};
+use crate::trajectory::{TimingParams, Trajectory, TrajectoryError};
 use crate::world::Environment;
 use crate::Pose;
 use rand::SeedableRng;
@@ -75,6 +77,8 @@ pub struct PlannerParams {
     /// Within this configuration-space distance of a start or goal that is free in the exact
     /// geometry but touched by the spheres, the exact checker decides.
     pub exact_radius: f64,
+    /// Time the returned path under the robot's joint limits (`None`: the path only).
+    pub timing: Option<TimingParams>,
 }
 
 impl Default for PlannerParams {
@@ -89,6 +93,7 @@ impl Default for PlannerParams {
             ik: IkParams::default(),
             exact_radius: 0.75,
             dynamic_domain: Some(rrt_connect::DynamicDomain::default()),
+            timing: None,
         }
     }
 }
@@ -133,6 +138,9 @@ pub enum PlanError {
     /// cover the geometry it was fitted to: a bug or a corrupt sphere cache).
     #[error("the path failed exact validation: {0}")]
     InvalidPath(Contact),
+    /// The timing parameters are out of range.
+    #[error("invalid timing: {0}")]
+    InvalidTiming(TrajectoryError),
     /// The search ran out of time or iterations.
     #[error("no path found within {iterations} iterations and {elapsed_ms:.1} ms")]
     Timeout {
@@ -154,6 +162,7 @@ impl PlanError {
             PlanError::UnknownLink(_) => "unknown_link",
             PlanError::UnreachablePose { .. } => "unreachable_pose",
             PlanError::InvalidPath(_) => "invalid_path",
+            PlanError::InvalidTiming(_) => "invalid_timing",
             PlanError::Timeout { .. } => "timeout",
         }
     }
@@ -190,6 +199,8 @@ pub struct PlanStats {
     pub length_before: f64,
     /// Path length after simplification.
     pub length_after: f64,
+    /// Timing the path (blends checked on the exact geometry), seconds.
+    pub timing_s: f64,
 }
 
 impl PlanStats {
@@ -207,6 +218,9 @@ pub struct PlanResult {
     pub path: Vec<Vec<f64>>,
     /// Counters and timings.
     pub stats: PlanStats,
+    /// The path timed under the robot's limits, when `params.timing` asked for it (`Err`: the
+    /// robot's limits do not allow it, e.g. a joint without a velocity limit).
+    pub trajectory: Option<Result<Trajectory, TrajectoryError>>,
 }
 
 /// Length of a path in configuration space.
@@ -233,6 +247,9 @@ pub fn plan(
     sampler: &mut dyn Sampler,
 ) -> Result<PlanResult, PlanError> {
     let params = &request.params;
+    if let Some(timing) = &params.timing {
+        timing.validate().map_err(PlanError::InvalidTiming)?;
+    }
     let mut checker = Validity::new(robot, env, params.resolution, params.exact_radius);
     let mut rng = PlannerRng::seed_from_u64(params.seed);
     let mut stats = PlanStats::default();
@@ -338,7 +355,17 @@ pub fn plan(
         return Err(PlanError::InvalidPath(c));
     }
     stats.length_after = path_length(robot, &path);
-    Ok(PlanResult { path, stats })
+    let trajectory = params.timing.map(|timing| {
+        let t = Instant::now();
+        let out = timing::timed(&mut checker, &path, &timing, params.resolution);
+        stats.timing_s = t.elapsed().as_secs_f64();
+        out
+    });
+    Ok(PlanResult {
+        path,
+        stats,
+        trajectory,
+    })
 }
 
 /// The first contact along `path` in the exact geometry, waypoints and edges at `resolution`.

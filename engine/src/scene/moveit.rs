@@ -309,6 +309,9 @@ pub struct MotionRequest {
     pub goal: Goal,
     /// `allowed_planning_time`, seconds, when given.
     pub allowed_planning_time: Option<f64>,
+    /// `max_velocity_scaling_factor` and `max_acceleration_scaling_factor`, when given and
+    /// not 0 (MoveIt reads 0 as "not set").
+    pub scaling: (Option<f64>, Option<f64>),
 }
 
 /// Imports a `MotionPlanRequest` YAML for `robot`.
@@ -380,7 +383,18 @@ pub fn request_from_yaml(
             Some(n) => Some(n.f64()?),
             None => None,
         },
+        scaling: (
+            scaling_factor(&root, "max_velocity_scaling_factor")?,
+            scaling_factor(&root, "max_acceleration_scaling_factor")?,
+        ),
     })
+}
+
+fn scaling_factor(root: &Node, key: &str) -> Result<Option<f64>, SceneError> {
+    match root.opt(key) {
+        Some(n) => Ok(Some(n.f64()?).filter(|&v| v != 0.0)),
+        None => Ok(None),
+    }
 }
 
 fn pose_goal_from(pc: &Node, oc: Option<&Node>) -> Result<PoseGoal, SceneError> {
@@ -640,6 +654,54 @@ pub fn request_to_yaml(robot: &Robot, start: &[f64], goal: &[f64], allowed_time:
         allowed_planning_time: allowed_time,
     };
     serde_yaml_ng::to_string(&doc).expect("request serialises")
+}
+
+/// A `RobotTrajectory` YAML for a timed trajectory: every sample with positions, velocities,
+/// accelerations and `time_from_start` (`sec`, `nanosec`), as MoveIt writes it.
+pub fn trajectory_to_yaml(t: &crate::trajectory::Trajectory) -> String {
+    #[derive(Serialize)]
+    struct Duration {
+        sec: i32,
+        nanosec: u32,
+    }
+    #[derive(Serialize)]
+    struct Point {
+        positions: Vec<f64>,
+        velocities: Vec<f64>,
+        accelerations: Vec<f64>,
+        effort: Vec<f64>,
+        time_from_start: Duration,
+    }
+    #[derive(Serialize)]
+    struct JointTrajectory {
+        joint_names: Vec<String>,
+        points: Vec<Point>,
+    }
+    #[derive(Serialize)]
+    struct Trajectory {
+        joint_trajectory: JointTrajectory,
+    }
+    let doc = Trajectory {
+        joint_trajectory: JointTrajectory {
+            joint_names: t.joint_names.clone(),
+            points: (0..t.times.len())
+                .map(|k| {
+                    let ns = (t.times[k] * 1e9).round() as u64;
+                    Point {
+                        positions: t.positions[k].clone(),
+                        velocities: t.velocities[k].clone(),
+                        accelerations: t.accelerations[k].clone(),
+                        effort: Vec::new(),
+                        time_from_start: Duration {
+                            sec: (ns / 1_000_000_000) as i32,
+                            nanosec: (ns % 1_000_000_000) as u32,
+                        },
+                    }
+                })
+                .collect(),
+        },
+    };
+    serde_yaml_ng::to_string(&doc).expect("trajectory serialises")
 }
 
 /// A `RobotTrajectory` YAML for a path (no timing: `time_from_start` counts waypoints).

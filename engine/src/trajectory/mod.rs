@@ -141,7 +141,7 @@ pub enum TrajectoryError {
 }
 
 /// A timed trajectory (see the module docs).
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Trajectory {
     /// Joint names, in the columns' order.
     pub joint_names: Vec<String>,
@@ -240,6 +240,11 @@ impl Trajectory {
         Ok(out)
     }
 
+    /// The geometric path followed (waypoints unwrapped, corners blended).
+    pub fn path(&self) -> &BlendedPath {
+        &self.path
+    }
+
     /// Position, velocity and acceleration at time `t` (clamped to `[0, duration]`).
     pub fn state_at(&self, t: f64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
         let dof = self.joint_names.len();
@@ -247,7 +252,7 @@ impl Trajectory {
         let p = &self.profile;
         let t = t.clamp(0.0, self.duration);
         if p.u.is_empty() {
-            self.path.eval(0.0, true, &mut q, &mut dq, &mut ddq);
+            self.path.eval(0.0, 0.0, &mut q, &mut dq, &mut ddq);
             return (q, vec![0.0; dof], vec![0.0; dof]);
         }
         let i = p.t.partition_point(|&ti| ti <= t).clamp(1, p.u.len()) - 1;
@@ -255,7 +260,8 @@ impl Trajectory {
         let (u, v0) = (p.u[i], p.x[i].sqrt());
         let s = (p.s[i] + v0 * tau + 0.5 * u * tau * tau).clamp(p.s[i], p.s[i + 1]);
         let v = (v0 + u * tau).max(0.0);
-        self.path.eval(s, s < p.s[i + 1], &mut q, &mut dq, &mut ddq);
+        let on = (p.s[i] + p.s[i + 1]) / 2.0;
+        self.path.eval(s, on, &mut q, &mut dq, &mut ddq);
         for j in 0..dof {
             let (tangent, curvature) = (dq[j], ddq[j]);
             dq[j] = tangent * v;

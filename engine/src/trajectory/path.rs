@@ -7,7 +7,7 @@
 //! (deviation 0, or a reversal) stays sharp: the trajectory stops there.
 
 /// One piece of the path.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 enum Piece {
     /// `start + s · dir` (unit `dir`).
     Line { start: Vec<f64>, dir: Vec<f64> },
@@ -17,11 +17,13 @@ enum Piece {
         x: Vec<f64>,
         y: Vec<f64>,
         radius: f64,
+        /// The corner blended (corner `i` is waypoint `i + 1`).
+        corner: usize,
     },
 }
 
 /// A path through waypoints with blended corners (see the module docs).
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct BlendedPath {
     /// Pieces with their start arc length and length.
     pieces: Vec<(f64, f64, Piece)>,
@@ -151,6 +153,7 @@ impl BlendedPath {
                     x,
                     y: dir.clone(),
                     radius,
+                    corner: pts[k + 1].0 - 1,
                 },
             );
         }
@@ -186,19 +189,31 @@ impl BlendedPath {
         &self.stops
     }
 
-    /// Piece boundaries `(start, length, is_arc)`, in order.
-    pub fn pieces(&self) -> impl Iterator<Item = (f64, f64, bool)> + '_ {
-        self.pieces
-            .iter()
-            .map(|(s, l, p)| (*s, *l, matches!(p, Piece::Arc { .. })))
+    /// Pieces `(start, length, angle turned)` in order (angle 0 for straight ones).
+    pub fn pieces(&self) -> impl Iterator<Item = (f64, f64, f64)> + '_ {
+        self.pieces.iter().map(|(s, l, p)| match p {
+            Piece::Arc { radius, .. } => (*s, *l, l / radius),
+            Piece::Line { .. } => (*s, *l, 0.0),
+        })
     }
 
-    /// Position, first and second derivative in arc length at `s` (clamped to the path), of
-    /// the piece starting at or before `s` (`right`: the piece after a boundary, else the one
-    /// before).
-    pub fn eval(&self, s: f64, right: bool, q: &mut [f64], dq: &mut [f64], ddq: &mut [f64]) {
-        let s = s.clamp(0.0, self.length);
-        let k = self.piece_at(s, right);
+    /// The blend arcs: `(corner, start, length)`.
+    pub fn arcs(&self) -> impl Iterator<Item = (usize, f64, f64)> + '_ {
+        self.pieces.iter().filter_map(|(s, l, p)| match p {
+            Piece::Arc { corner, .. } => Some((*corner, *s, *l)),
+            Piece::Line { .. } => None,
+        })
+    }
+
+    /// Position, first and second derivative in arc length at `s`, on the piece holding arc
+    /// length `on` (the later one at a boundary): `s` is clamped to that piece, so the ends
+    /// of a grid interval are evaluated on the interval's own piece whatever the rounding.
+    pub fn eval(&self, s: f64, on: f64, q: &mut [f64], dq: &mut [f64], ddq: &mut [f64]) {
+        let k = self
+            .pieces
+            .partition_point(|(s0, _, _)| *s0 <= on)
+            .saturating_sub(1)
+            .min(self.pieces.len() - 1);
         let (s0, len, piece) = &self.pieces[k];
         let u = (s - s0).clamp(0.0, *len);
         match piece {
@@ -214,6 +229,7 @@ impl BlendedPath {
                 x,
                 y,
                 radius,
+                ..
             } => {
                 let (sin, cos) = (u / radius).sin_cos();
                 for j in 0..q.len() {
@@ -223,13 +239,6 @@ impl BlendedPath {
                 }
             }
         }
-    }
-
-    fn piece_at(&self, s: f64, right: bool) -> usize {
-        let k = self
-            .pieces
-            .partition_point(|(s0, _, _)| if right { *s0 <= s } else { *s0 < s });
-        k.saturating_sub(1).min(self.pieces.len() - 1)
     }
 }
 
@@ -244,17 +253,23 @@ mod tests {
         assert!(path.stops().is_empty());
         let (mut q, mut dq, mut ddq) = ([0.0; 2], [0.0; 2], [0.0; 2]);
         // Closest approach to the corner: the arc's middle, within the deviation.
-        path.eval(path.waypoint_s()[1], true, &mut q, &mut dq, &mut ddq);
+        path.eval(
+            path.waypoint_s()[1],
+            path.waypoint_s()[1],
+            &mut q,
+            &mut dq,
+            &mut ddq,
+        );
         let d = ((q[0] - 1.0).powi(2) + q[1].powi(2)).sqrt();
         assert!((d - 0.05).abs() < 1e-9, "deviation {d}");
         // Tangent directions continuous at the piece boundaries.
         for (s0, _, _) in path.pieces() {
             let (mut a, mut b) = ([0.0; 2], [0.0; 2]);
-            path.eval(s0, false, &mut q, &mut a, &mut ddq);
-            path.eval(s0, true, &mut q, &mut b, &mut ddq);
+            path.eval(s0, s0 - 1e-9, &mut q, &mut a, &mut ddq);
+            path.eval(s0, s0, &mut q, &mut b, &mut ddq);
             assert!((a[0] - b[0]).abs() < 1e-9 && (a[1] - b[1]).abs() < 1e-9);
         }
-        path.eval(path.length(), true, &mut q, &mut dq, &mut ddq);
+        path.eval(path.length(), path.length(), &mut q, &mut dq, &mut ddq);
         assert!((q[0] - 1.0).abs() < 1e-12 && (q[1] - 1.0).abs() < 1e-12);
     }
 

@@ -5,9 +5,9 @@ use ember_engine::robot::Robot;
 use ember_engine::trajectory::{time_parameterize, TimingParams, Trajectory, TrajectoryError};
 use rand::{Rng, SeedableRng};
 
-/// Relative slack on velocity and acceleration limits between grid points (arcs are
-/// checked at their grid points only).
-const TOLERANCE: f64 = 0.02;
+/// Relative slack on acceleration limits between the grid points of blend arcs (velocity
+/// limits hold exactly).
+const TOLERANCE: f64 = 0.005;
 
 /// A random path of `n` waypoints within the joint limits.
 fn random_path(robot: &Robot, rng: &mut impl Rng, n: usize) -> Vec<Vec<f64>> {

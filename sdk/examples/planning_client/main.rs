@@ -19,6 +19,8 @@ fn main() -> anyhow::Result<()> {
         method: Method::Auto,
         time_limit_s: 5.0,
         seed: 7,
+        // Timed under the robot's joint limits, at the daemon's configured scaling (0, 0).
+        trajectory: Some((0.0, 0.0)),
     };
     let reply = client.plan(&call, Duration::from_secs(10))?;
     println!(
@@ -29,11 +31,22 @@ fn main() -> anyhow::Result<()> {
         reply.message()
     );
     anyhow::ensure!(reply.status == Status::Ok, "joint goal not solved");
+    let trajectory = reply
+        .trajectory
+        .as_ref()
+        .filter(|t| !t.times.is_empty())
+        .ok_or_else(|| anyhow::anyhow!("no trajectory: {}", reply.message()))?;
+    println!(
+        "trajectory: executes in {:.2} s, {} samples (positions, velocities, accelerations)",
+        trajectory.duration,
+        trajectory.times.len()
+    );
 
     // The wrist 70 cm ahead, 1 m up, gripper level: a pose goal (x y z qx qy qz qw, tolerances).
     let pose_call = PlanCall {
         goals: vec![],
         pose: Some(([0.7, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0], 0.01, 0.05)),
+        trajectory: None,
         ..call
     };
     let reply = client.plan(&pose_call, Duration::from_secs(10))?;

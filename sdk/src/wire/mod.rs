@@ -12,7 +12,8 @@ pub use cloud::{CloudHeader, Point, MAX_CLOUD_POINTS};
 pub use joints::{JointState, MAX_JOINTS};
 pub use objects::{ObjectUpdate, ShapeKind};
 pub use plan::{
-    GoalKind, Method, PlanRequestHeader, PlanResponseHeader, FLAG_NO_LEARN, KNOWN_FLAGS,
+    GoalKind, Method, PlanRequestHeader, PlanResponseHeader, TrajectoryBlock, FLAG_NO_LEARN,
+    FLAG_TRAJECTORY, KNOWN_FLAGS,
 };
 pub use status::StatusReply;
 

@@ -121,6 +121,8 @@ struct Tally {
     episodes: usize,
     latencies_ms: Vec<f64>,
     retrieval_us: Vec<f64>,
+    /// Executed durations of the timed trajectories, seconds.
+    durations_s: Vec<f64>,
 }
 
 impl Tally {
@@ -276,6 +278,8 @@ pub fn run(args: DemoArgs) -> anyhow::Result<ExitCode> {
                 method: *method,
                 time_limit_s: 5.0,
                 seed,
+                // Timed under the robot's limits at the daemon's scaling.
+                trajectory: Some((0.0, 0.0)),
             };
             let flags = if *method == Method::Uniform {
                 0
@@ -289,7 +293,13 @@ pub fn run(args: DemoArgs) -> anyhow::Result<ExitCode> {
             if reply.status == Status::Ok {
                 tally.latencies_ms.push(ms);
                 tally.retrieval_us.push(reply.header.retrieval_us);
-                line.push(format!("{name} {ms:.1} ms"));
+                let executes = reply.trajectory.as_ref().filter(|t| !t.times.is_empty());
+                if let Some(t) = executes {
+                    tally.durations_s.push(t.duration);
+                    line.push(format!("{name} {ms:.1} ms → runs {:.1} s", t.duration));
+                } else {
+                    line.push(format!("{name} {ms:.1} ms (not timed)"));
+                }
             } else {
                 line.push(format!("{name} {:?}", reply.status));
             }
@@ -303,26 +313,29 @@ pub fn run(args: DemoArgs) -> anyhow::Result<ExitCode> {
     daemon.stop()?;
 
     println!(
-        "\n{:<8} {:>8} {:>7} {:>10} {:>9} {:>13}",
-        "method", "episodes", "solved", "median_ms", "mean_ms", "retrieval_us"
+        "\n{:<8} {:>8} {:>7} {:>10} {:>9} {:>13} {:>11}",
+        "method", "episodes", "solved", "median_ms", "mean_ms", "retrieval_us", "executes_s"
     );
     let mut results = Vec::new();
     for ((_, name), t) in METHODS.iter().zip(&tallies).rev() {
         let (median, mean) = (Tally::median(&t.latencies_ms), Tally::mean(&t.latencies_ms));
         let retrieval = Tally::mean(&t.retrieval_us);
+        let executes = Tally::median(&t.durations_s);
         println!(
-            "{name:<8} {:>8} {:>7} {median:>10.2} {mean:>9.2} {retrieval:>13.1}",
+            "{name:<8} {:>8} {:>7} {median:>10.2} {mean:>9.2} {retrieval:>13.1} {executes:>11.2}",
             t.episodes,
             t.latencies_ms.len()
         );
         results.push(format!(
-            "RESULT demo method={name} episodes={} solved={} median_ms={median:.3} mean_ms={mean:.3} retrieval_us={retrieval:.1}",
+            "RESULT demo method={name} episodes={} solved={} median_ms={median:.3} mean_ms={mean:.3} retrieval_us={retrieval:.1} median_duration_s={executes:.3} timed={}",
             t.episodes,
-            t.latencies_ms.len()
+            t.latencies_ms.len(),
+            t.durations_s.len()
         ));
     }
     println!(
-        "\nplan latency is end to end (client request to reply over iceoryx2), retrieval included"
+        "\nplan latency is end to end (client request to reply over iceoryx2), retrieval and \
+         trajectory timing included; executes_s: how long the timed trajectory runs on the robot"
     );
     println!("recording: {recording}");
     println!("experience database: {}", args.db.display());
