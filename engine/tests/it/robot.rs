@@ -390,3 +390,41 @@ fn returned_paths_are_free_in_the_exact_geometry() {
     assert!(solved >= 18, "only {solved} of 24 solved");
     std::fs::remove_dir_all(&bot.packages).ok();
 }
+
+#[test]
+fn a_moveit_joint_limits_file_overrides_the_description() {
+    let dir = std::env::temp_dir().join(format!("ember-limits-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("joint_limits.yaml");
+    std::fs::write(
+        &file,
+        "joint_limits:\n  shoulder_pan_joint:\n    has_velocity_limits: true\n    max_velocity: 0.5\n    \
+         has_acceleration_limits: true\n    max_acceleration: 0.25\n    has_jerk_limits: true\n    \
+         max_jerk: 5\n  elbow_flex_joint:\n    has_velocity_limits: false\n    max_velocity: 0\n  \
+         l_gripper_finger_joint:\n    max_velocity: 0.1\n",
+    )
+    .unwrap();
+    let mut spec = ember_engine::robot::RobotSpec::new("fetch");
+    let builtin = spec.load().unwrap();
+    spec.joint_limits = Some(file.clone());
+    let robot = spec.load().unwrap();
+    let pan = &robot.limits()[1];
+    assert_eq!(
+        (pan.velocity, pan.acceleration, pan.jerk),
+        (Some(0.5), Some(0.25), Some(5.0))
+    );
+    // A `false` flag leaves the value before it; joints outside the group are skipped.
+    assert_eq!(robot.limits()[4], builtin.limits()[4]);
+    assert!(robot
+        .load_info()
+        .sources
+        .iter()
+        .any(|s| s.ends_with("joint_limits.yaml")));
+    std::fs::write(&file, "joint_limits: [1, 2]\n").unwrap();
+    let err = spec.load().unwrap_err().to_string();
+    assert!(
+        err.contains("joint_limits.yaml") && err.contains("not a MoveIt joint_limits.yaml"),
+        "{err}"
+    );
+    let _ = std::fs::remove_dir_all(dir);
+}

@@ -44,8 +44,9 @@ fn check(args: RobotCheckArgs) -> anyhow::Result<ExitCode> {
     for (name, link) in &info.end_effectors {
         println!("  end effector {name} on {link}");
     }
-    println!("\njoints (configuration order):");
-    for v in robot.variables() {
+    println!("\njoints (configuration order): position limits; velocity, acceleration, jerk limits (- not given)");
+    let limit = |v: Option<f64>| v.map_or("-".to_string(), |x| format!("{x}"));
+    for (v, l) in robot.variables().iter().zip(robot.limits()) {
         let kind = robot
             .links()
             .iter()
@@ -57,8 +58,14 @@ fn check(args: RobotCheckArgs) -> anyhow::Result<ExitCode> {
             })
             .unwrap_or("?");
         println!(
-            "  {:<28} {:<10} [{:.4}, {:.4}]",
-            v.name, kind, v.lower, v.upper
+            "  {:<28} {:<10} [{:.4}, {:.4}]  v {} a {} j {}",
+            v.name,
+            kind,
+            v.lower,
+            v.upper,
+            limit(l.velocity),
+            limit(l.acceleration),
+            limit(l.jerk)
         );
     }
     for p in robot.passive_joints() {
