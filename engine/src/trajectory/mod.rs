@@ -258,8 +258,13 @@ impl Trajectory {
         let i = p.t.partition_point(|&ti| ti <= t).clamp(1, p.u.len()) - 1;
         let tau = t - p.t[i];
         let (u, v0) = (p.u[i], p.x[i].sqrt());
-        let s = (p.s[i] + v0 * tau + 0.5 * u * tau * tau).clamp(p.s[i], p.s[i + 1]);
-        let v = (v0 + u * tau).max(0.0);
+        let (s, v) = if t >= self.duration {
+            // The end exactly, at rest (no rounding left in the speed).
+            (p.s[i + 1], 0.0)
+        } else {
+            let s = (p.s[i] + v0 * tau + 0.5 * u * tau * tau).clamp(p.s[i], p.s[i + 1]);
+            (s, (v0 + u * tau).max(0.0))
+        };
         let on = (p.s[i] + p.s[i + 1]) / 2.0;
         self.path.eval(s, on, &mut q, &mut dq, &mut ddq);
         for j in 0..dof {
