@@ -656,6 +656,18 @@ pub fn request_to_yaml(robot: &Robot, start: &[f64], goal: &[f64], allowed_time:
     serde_yaml_ng::to_string(&doc).expect("request serialises")
 }
 
+/// The `RobotTrajectory` document, points of either kind.
+#[derive(Serialize)]
+struct RobotTrajectoryDoc<P> {
+    joint_trajectory: JointTrajectoryDoc<P>,
+}
+
+#[derive(Serialize)]
+struct JointTrajectoryDoc<P> {
+    joint_names: Vec<String>,
+    points: Vec<P>,
+}
+
 /// A `RobotTrajectory` YAML for a timed trajectory: every sample with positions, velocities,
 /// accelerations and `time_from_start` (`sec`, `nanosec`), as MoveIt writes it.
 pub fn trajectory_to_yaml(t: &crate::trajectory::Trajectory) -> String {
@@ -672,17 +684,8 @@ pub fn trajectory_to_yaml(t: &crate::trajectory::Trajectory) -> String {
         effort: Vec<f64>,
         time_from_start: Duration,
     }
-    #[derive(Serialize)]
-    struct JointTrajectory {
-        joint_names: Vec<String>,
-        points: Vec<Point>,
-    }
-    #[derive(Serialize)]
-    struct Trajectory {
-        joint_trajectory: JointTrajectory,
-    }
-    let doc = Trajectory {
-        joint_trajectory: JointTrajectory {
+    let doc = RobotTrajectoryDoc {
+        joint_trajectory: JointTrajectoryDoc {
             joint_names: t.joint_names.clone(),
             points: (0..t.times.len())
                 .map(|k| {
@@ -711,17 +714,8 @@ pub fn path_to_yaml(robot: &Robot, path: &[Vec<f64>]) -> String {
         positions: Vec<f64>,
         time_from_start: f64,
     }
-    #[derive(Serialize)]
-    struct JointTrajectory {
-        joint_names: Vec<String>,
-        points: Vec<Point>,
-    }
-    #[derive(Serialize)]
-    struct Trajectory {
-        joint_trajectory: JointTrajectory,
-    }
-    let doc = Trajectory {
-        joint_trajectory: JointTrajectory {
+    let doc = RobotTrajectoryDoc {
+        joint_trajectory: JointTrajectoryDoc {
             joint_names: robot.variables().iter().map(|v| v.name.clone()).collect(),
             points: path
                 .iter()
