@@ -226,7 +226,7 @@ fn progress_line(label: String, count: usize) -> impl FnMut(usize, usize) {
 
 /// Loads the `task` set of `dataset` (its test set when `test`) from `root`, generating it
 /// first when it holds fewer than `count` problems.
-fn problem_set(
+pub(crate) fn problem_set(
     robot: &Robot,
     root: &Path,
     dataset: &str,

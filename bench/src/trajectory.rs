@@ -3,8 +3,9 @@
 //! in the same run.
 //!
 //! Paths: random ones for Fetch and Panda (`--waypoints` each, uniform within the limits),
-//! and the solution paths of a problem set (`--problems DIR`, default
-//! `ember-data/problems/shelf_zero_test`: planner-like paths through a shelf scene). Each path
+//! and the solution paths of our `shelf_zero` test set (`--problems ROOT`, default
+//! `ember-data/problems`, generated there when missing, as `paper` does: planner paths through
+//! a shelf scene, simplified). Each path
 //! is timed with the built-in robot's limits, corners blended within 0.05. `toppra` gets the
 //! blended path itself (sampled every 0.005 of arc length, spline-interpolated) with the same
 //! limits. With `--export FILE` the paths, limits, our durations and our trajectories sampled
@@ -15,8 +16,8 @@
 //! duration_ratio_max=<f>` per kind.
 
 use crate::stats::summary;
+use ember_engine::problems::Task;
 use ember_engine::robot::Robot;
-use ember_engine::scene::moveit;
 use ember_engine::trajectory::{time_parameterize, TimingParams, Trajectory};
 use rand::{Rng, SeedableRng};
 use std::path::PathBuf;
@@ -30,10 +31,11 @@ pub struct Args {
     /// Waypoints per random path.
     #[arg(long, default_value_t = 10)]
     waypoints: usize,
-    /// A problem folder whose path files (pathNNNN.yaml) are timed as well.
-    #[arg(long, default_value = "ember-data/problems/shelf_zero_test")]
+    /// Folder of the problem sets; the `shelf_zero` test set's solution paths are timed too
+    /// (generated there first when missing).
+    #[arg(long, default_value = "ember-data/problems")]
     problems: PathBuf,
-    /// Planner-like paths taken from the problem folder.
+    /// Planner paths taken from that set.
     #[arg(long, default_value_t = 20)]
     planned: usize,
     /// Write paths, limits and our trajectories (100 Hz) as JSON.
@@ -69,34 +71,18 @@ fn random_paths(robot: &Robot, name: &str, n: usize, waypoints: usize, seed: u64
         .collect()
 }
 
-fn planned_paths(robot: &Robot, dir: &std::path::Path, n: usize) -> anyhow::Result<Vec<Case>> {
-    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
-        .map_err(|e| anyhow::anyhow!("cannot read {}: {e}", dir.display()))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| {
-            p.file_name()
-                .and_then(|f| f.to_str())
-                .is_some_and(|f| f.starts_with("path") && f.ends_with(".yaml"))
+fn planned_paths(robot: &Robot, root: &std::path::Path, n: usize) -> anyhow::Result<Vec<Case>> {
+    let set = crate::paper::problem_set(robot, root, "shelf_zero", Task::Pick, true, n)?;
+    Ok(set
+        .problems
+        .into_iter()
+        .filter_map(|p| p.path)
+        .map(|path| Case {
+            kind: format!("planned_{}", set.name),
+            robot: "fetch".into(),
+            path,
         })
-        .collect();
-    files.sort();
-    let set = dir
-        .file_name()
-        .and_then(|f| f.to_str())
-        .unwrap_or("planned");
-    files
-        .iter()
-        .take(n)
-        .map(|f| {
-            let text = std::fs::read_to_string(f)?;
-            let path = moveit::path_from_yaml(&text, &f.display().to_string(), robot)?;
-            Ok(Case {
-                kind: format!("planned_{set}"),
-                robot: "fetch".into(),
-                path,
-            })
-        })
-        .collect()
+        .collect())
 }
 
 /// Per-joint velocity and acceleration limits the trajectory used.

@@ -26,6 +26,32 @@ fn with_deps(main: &str, deps: &[&str]) -> String {
     s
 }
 
+/// Topic names of Ember's recordings (written by the daemon's recorder, read by
+/// [`crate::session`]).
+pub mod topic {
+    pub const CLOUD: &str = "/ember/cloud";
+    pub const CLOUD_POSE: &str = "/ember/cloud_pose";
+    pub const JOINTS: &str = "/ember/joints";
+    pub const OBJECTS: &str = "/ember/objects";
+    pub const PLAN_REQUEST: &str = "/ember/plan_request";
+    pub const PLAN_RESPONSE: &str = "/ember/plan_response";
+    pub const PLAN_TRAJECTORY: &str = "/ember/plan_trajectory";
+}
+
+/// Every recorded topic with the schema its messages carry (one channel each).
+pub const TOPICS: [(&str, &str); 7] = [
+    (topic::CLOUD, "sensor_msgs/msg/PointCloud2"),
+    (topic::CLOUD_POSE, "geometry_msgs/msg/PoseStamped"),
+    (topic::JOINTS, "sensor_msgs/msg/JointState"),
+    (topic::OBJECTS, "ember_msgs/msg/ObjectUpdate"),
+    (topic::PLAN_REQUEST, "ember_msgs/msg/PlanRequest"),
+    (topic::PLAN_RESPONSE, "ember_msgs/msg/PlanResponse"),
+    (
+        topic::PLAN_TRAJECTORY,
+        "trajectory_msgs/msg/JointTrajectory",
+    ),
+];
+
 /// (schema name, ros2msg text) of every recorded type.
 pub fn schemas() -> Vec<(&'static str, String)> {
     vec![

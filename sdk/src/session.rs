@@ -135,9 +135,9 @@ impl TopicMap {
     /// The role of `topic`: Ember's own topics first, then the mapping.
     fn role(&self, topic: &str) -> Option<Role> {
         match topic {
-            "/ember/cloud" => Some(Role::Cloud),
-            "/ember/cloud_pose" => Some(Role::CloudPose),
-            "/ember/joints" => Some(Role::Joints),
+            recording::topic::CLOUD => Some(Role::Cloud),
+            recording::topic::CLOUD_POSE => Some(Role::CloudPose),
+            recording::topic::JOINTS => Some(Role::Joints),
             _ => self.0.get(topic).cloned(),
         }
     }
@@ -243,7 +243,7 @@ impl Session {
             };
             let ember = topic.starts_with("/ember/");
             let event = match (topic, topics.role(topic)) {
-                ("/ember/objects", _) => {
+                (recording::topic::OBJECTS, _) => {
                     let o: recording::ObjectUpdate = recording::decode(&m.data).map_err(bad)?;
                     Event::Object(ObjectUpdate {
                         version: PROTOCOL_VERSION,
@@ -254,13 +254,13 @@ impl Session {
                         pose: o.pose.to_wire(),
                     })
                 }
-                ("/ember/plan_request", _) => {
+                (recording::topic::PLAN_REQUEST, _) => {
                     Event::PlanRequest(recording::decode(&m.data).map_err(bad)?)
                 }
-                ("/ember/plan_response", _) => {
+                (recording::topic::PLAN_RESPONSE, _) => {
                     Event::PlanResponse(recording::decode(&m.data).map_err(bad)?)
                 }
-                ("/ember/plan_trajectory", _) => {
+                (recording::topic::PLAN_TRAJECTORY, _) => {
                     Event::PlanTrajectory(recording::decode(&m.data).map_err(bad)?)
                 }
                 (_, Some(Role::Joints)) => {

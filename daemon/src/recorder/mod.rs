@@ -14,7 +14,7 @@
 //! `/ember/plan_response` (`ember_msgs/msg/PlanRequest`, `.../PlanResponse`). Log time is the
 //! daemon's receive (or reply) time; header stamps are the sender's.
 
-use ember_sdk::recording::{self as messages, encode, Header, Time};
+use ember_sdk::recording::{self as messages, encode, topic, Header, Time};
 use std::collections::BTreeMap;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
@@ -155,19 +155,6 @@ struct SessionWriter {
     path: PathBuf,
 }
 
-const TOPICS: [(&str, &str); 7] = [
-    ("/ember/cloud", "sensor_msgs/msg/PointCloud2"),
-    ("/ember/cloud_pose", "geometry_msgs/msg/PoseStamped"),
-    ("/ember/joints", "sensor_msgs/msg/JointState"),
-    ("/ember/objects", "ember_msgs/msg/ObjectUpdate"),
-    ("/ember/plan_request", "ember_msgs/msg/PlanRequest"),
-    ("/ember/plan_response", "ember_msgs/msg/PlanResponse"),
-    (
-        "/ember/plan_trajectory",
-        "trajectory_msgs/msg/JointTrajectory",
-    ),
-];
-
 impl SessionWriter {
     fn open(path: &Path, options: &RecorderOptions) -> anyhow::Result<Self> {
         let file = std::fs::File::create(path)
@@ -181,11 +168,11 @@ impl SessionWriter {
             .map_err(|e| anyhow::anyhow!("cannot start {}: {e}", path.display()))?;
         let schemas: BTreeMap<&str, String> = messages::schemas().into_iter().collect();
         let mut channels = BTreeMap::new();
-        for (topic, ty) in TOPICS {
+        for (name, ty) in messages::TOPICS {
             let schema = writer.add_schema(ty, "ros2msg", schemas[ty].as_bytes())?;
             channels.insert(
-                topic,
-                writer.add_channel(schema, topic, "cdr", &BTreeMap::new())?,
+                name,
+                writer.add_channel(schema, name, "cdr", &BTreeMap::new())?,
             );
         }
         info!("recording to {}", path.display());
@@ -244,12 +231,12 @@ fn write_record(w: &mut SessionWriter, r: Record) -> anyhow::Result<u64> {
         } => {
             let cloud = messages::PointCloud2::xyz(header(stamp_ns, &frame_id), &points);
             let data = encode(&cloud);
-            w.write("/ember/cloud", recv_ns, stamp_ns, &data)?;
+            w.write(topic::CLOUD, recv_ns, stamp_ns, &data)?;
             let ps = messages::PoseStamped {
                 header: header(stamp_ns, "base_link"),
                 pose: messages::Pose::from_wire(pose),
             };
-            w.write("/ember/cloud_pose", recv_ns, stamp_ns, &encode(&ps))?;
+            w.write(topic::CLOUD_POSE, recv_ns, stamp_ns, &encode(&ps))?;
             n += data.len() as u64;
         }
         Record::Joints {
@@ -265,29 +252,24 @@ fn write_record(w: &mut SessionWriter, r: Record) -> anyhow::Result<u64> {
                 velocity: vec![],
                 effort: vec![],
             };
-            w.write("/ember/joints", recv_ns, stamp_ns, &encode(&js))?;
+            w.write(topic::JOINTS, recv_ns, stamp_ns, &encode(&js))?;
         }
         Record::Object { recv_ns, update } => {
             let stamp = update.header.stamp.ns();
-            w.write("/ember/objects", recv_ns, stamp, &encode(&update))?;
+            w.write(topic::OBJECTS, recv_ns, stamp, &encode(&update))?;
         }
         Record::PlanRequest { recv_ns, request } => {
-            w.write("/ember/plan_request", recv_ns, recv_ns, &encode(&request))?;
+            w.write(topic::PLAN_REQUEST, recv_ns, recv_ns, &encode(&request))?;
         }
         Record::PlanResponse { recv_ns, response } => {
-            w.write("/ember/plan_response", recv_ns, recv_ns, &encode(&response))?;
+            w.write(topic::PLAN_RESPONSE, recv_ns, recv_ns, &encode(&response))?;
         }
         Record::PlanTrajectory {
             recv_ns,
             trajectory,
         } => {
             let stamp = trajectory.header.stamp.ns();
-            w.write(
-                "/ember/plan_trajectory",
-                recv_ns,
-                stamp,
-                &encode(&trajectory),
-            )?;
+            w.write(topic::PLAN_TRAJECTORY, recv_ns, stamp, &encode(&trajectory))?;
         }
     }
     Ok(n)
