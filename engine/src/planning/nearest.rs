@@ -53,6 +53,8 @@ pub struct NearestIndex {
     stack: Vec<(u32, f64)>,
     target: Vec<f64>,
     target32: Vec<f32>,
+    /// A leaf's distances, kept between queries.
+    distances: Vec<f32>,
     avx2: bool,
 }
 
@@ -78,6 +80,7 @@ impl NearestIndex {
             stack: Vec::with_capacity(64),
             target: vec![0.0; dof],
             target32: vec![0.0; dof],
+            distances: vec![0.0; SLOTS],
             avx2: has_avx2(),
         }
     }
@@ -131,7 +134,7 @@ impl NearestIndex {
         stack.push((0, 0.0));
         let mut best = (f64::INFINITY, NONE);
         let mut best_slot = (0, 0);
-        let mut d2 = [0.0f32; SLOTS];
+        let mut d2 = std::mem::take(&mut self.distances);
         let mut q32 = std::mem::take(&mut self.target32);
         for (l, &v) in q32.iter_mut().zip(q.iter()) {
             *l = v as f32;
@@ -144,16 +147,18 @@ impl NearestIndex {
             if a == NONE {
                 let leaf = b as usize;
                 let n = self.len[leaf] as usize;
-                let nearest_here = self.leaf_distances(leaf, &q32, &mut d2);
+                let out: &mut [f32; SLOTS] = d2.as_mut_slice().try_into().expect("SLOTS long");
+                let nearest_here = self.leaf_distances(leaf, &q32, out);
                 if nearest_here as f64 >= best.0 {
                     continue;
                 }
-                for (k, &d) in d2[..n].iter().enumerate() {
-                    if (d as f64) < best.0 {
-                        best = (d as f64, self.ids[leaf * SLOTS + k]);
-                        best_slot = (leaf, k);
-                    }
-                }
+                // The first slot at the least distance (the lanes found the value).
+                let k = d2[..n]
+                    .iter()
+                    .position(|&d| d == nearest_here)
+                    .expect("the least distance is a filled slot's");
+                best = (nearest_here as f64, self.ids[leaf * SLOTS + k]);
+                best_slot = (leaf, k);
                 continue;
             }
             let da = self.box_dist2(a as usize, &q);
@@ -172,6 +177,7 @@ impl NearestIndex {
         }
         self.stack = stack;
         self.target32 = q32;
+        self.distances = d2;
         // The lanes chose; the exact coordinates give the distance.
         let d2 = self.exact_dist2(best_slot.0, best_slot.1, &q);
         self.target = q;
