@@ -275,7 +275,11 @@ impl Samples {
                 self.solved += 1;
                 self.times.push(t.elapsed().as_secs_f64() * 1e3);
             }
-            Err(_) => self.times.push((options.time_limit + retrieval_s) * 1e3),
+            Err(e) => {
+                // Which problems fail, and how, is worth seeing beside the means.
+                eprintln!("{method:?}: problem {:04} not solved: {e}", p.index);
+                self.times.push((options.time_limit + retrieval_s) * 1e3)
+            }
         }
         self.retrieval.push(retrieval_s * 1e6);
     }
