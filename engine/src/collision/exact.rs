@@ -10,7 +10,8 @@
 //! relative to each other are checked once, at construction.
 
 use super::checker::Contact;
-use super::parry::{posed_intersect, shared_geometry, shared_shape};
+use super::gjk::Convex;
+use super::parry::{convex_touch, shared_geometry, shared_shape};
 use crate::robot::{Link, Robot};
 use crate::world::Environment;
 use crate::Pose;
@@ -25,6 +26,8 @@ pub struct ExactPart {
     pub origin: Pose,
     /// The shape.
     pub shape: SharedShape,
+    /// The same for the `f64` GJK ([`super::gjk`]), which decides contacts.
+    pub convex: Convex,
     /// Bounding sphere centre in the link frame.
     pub center: [f64; 3],
     /// Bounding sphere radius.
@@ -70,8 +73,10 @@ impl ExactModel {
                     ((hi.z - lo.z) / 2.0) as f64,
                 );
                 let c = origin * Point3::from(mid);
+                let convex = Convex::from_parry(&*shape).expect("exact parts are convex");
                 model.parts.push(ExactPart {
                     origin,
+                    convex,
                     shape,
                     center: [c.x, c.y, c.z],
                     radius: half.norm() + 1e-6,
@@ -116,7 +121,7 @@ fn bound(parts: &[ExactPart]) -> Option<([f64; 3], f64)> {
 
 /// An environment object as a parry shape with a bounding sphere.
 struct ExactObject {
-    shape: SharedShape,
+    convex: Convex,
     pose: Pose,
     /// World axis-aligned bounds: the broad phase against parts' bounding spheres.
     lo: Vector3<f64>,
@@ -155,7 +160,7 @@ impl<'a> ExactChecker<'a> {
                 let aabb = shape.compute_aabb(&super::parry::to_parry_pose(&pose));
                 let v = |p: parry3d::math::Vector| Vector3::new(p.x as f64, p.y as f64, p.z as f64);
                 ExactObject {
-                    shape,
+                    convex: Convex::from_parry(&*shape).expect("primitives are convex"),
                     pose,
                     lo: v(aabb.mins) - Vector3::repeat(1e-6),
                     hi: v(aabb.maxs) + Vector3::repeat(1e-6),
@@ -248,7 +253,7 @@ impl<'a> ExactChecker<'a> {
                     if out.norm() > part.radius {
                         continue;
                     }
-                    if posed_intersect(&*part.shape, &pose, &*obj.shape, &obj.pose) {
+                    if convex_touch(&part.convex, &pose, &obj.convex, &obj.pose) {
                         return Some(Contact::Object {
                             link: names[li].name.clone(),
                             object: self.env.objects()[o].name.clone(),
@@ -283,16 +288,16 @@ impl<'a> ExactChecker<'a> {
             return false;
         }
         let half = map.resolution() / 2.0;
-        let voxel = SharedShape::cuboid(half as f32, half as f32, half as f32);
+        let voxel = Convex::Cuboid(Vector3::repeat(half));
         let aabb = part.shape.compute_aabb(&super::parry::to_parry_pose(pose));
         let lo = [aabb.mins.x, aabb.mins.y, aabb.mins.z].map(|v| v as f64 - half);
         let hi = [aabb.maxs.x, aabb.maxs.y, aabb.maxs.z].map(|v| v as f64 + half);
         map.any_occupied_in(lo, hi, |v| {
             (0..3).all(|k| v[k] >= lo[k] && v[k] <= hi[k])
-                && posed_intersect(
-                    &*part.shape,
+                && convex_touch(
+                    &part.convex,
                     pose,
-                    &*voxel,
+                    &voxel,
                     &Pose::translation(v[0], v[1], v[2]),
                 )
         })
@@ -319,7 +324,7 @@ pub fn links_touch(model: &ExactModel, poses: &[Pose], a: usize, b: usize) -> bo
             if (ca - cb).norm() > pa.radius + pb.radius {
                 continue;
             }
-            if posed_intersect(&*pa.shape, &pose_a, &*pb.shape, &(poses[b] * pb.origin)) {
+            if convex_touch(&pa.convex, &pose_a, &pb.convex, &(poses[b] * pb.origin)) {
                 return true;
             }
         }

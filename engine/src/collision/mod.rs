@@ -17,6 +17,7 @@ pub mod checker;
 pub mod convex;
 pub mod distance;
 pub mod exact;
+pub mod gjk;
 pub mod parry;
 pub mod ray;
 pub mod shape;

@@ -6,6 +6,7 @@
 //! All parry3d conversions live here (parry3d 0.31 works in f32 glam types; cylinders run
 //! along its local Y axis, ours along Z).
 
+use super::gjk::{self, Convex};
 use super::Shape;
 use crate::robot::{Geometry, Robot};
 use crate::world::Object;
@@ -94,40 +95,74 @@ pub fn shape_distance(a: &Shape, pose_a: &Pose, b: &Shape, pose_b: &Pose) -> f64
     posed_distance(&*sa, &(pose_a * fa), &*sb, &(pose_b * fb))
 }
 
-/// Minimum distance between two parry shapes at world poses; 0 on contact.
+/// Minimum distance between two parry shapes at world poses; 0 on contact. Computed by our
+/// `f64` GJK ([`super::gjk`]): parry3d 0.31's own queries err on some pairs (`distance` and
+/// `intersection_test` call a cuboid and a cylinder 4.8–9 mm apart touching; `intersection_test`
+/// misses a cuboid inside a capsule's reach).
 pub(crate) fn posed_distance(
     a: &dyn parry3d::shape::Shape,
     pose_a: &Pose,
     b: &dyn parry3d::shape::Shape,
     pose_b: &Pose,
 ) -> f64 {
-    parry3d::query::distance(&to_parry_pose(pose_a), a, &to_parry_pose(pose_b), b)
-        .map(|d| d.distance as f64)
-        .expect("parry3d supports every pair of convex shapes")
+    let convex = |s: &dyn parry3d::shape::Shape| Convex::from_parry(s).expect("convex shapes only");
+    convex_distance(&convex(a), pose_a, &convex(b), pose_b)
 }
 
-/// True when two parry shapes at world poses touch or overlap, decided by the GJK distance:
-/// parry3d 0.31's `intersection_test` errs both ways on some pairs (a cuboid and a cylinder
-/// ~9 mm apart reported touching; a cuboid inside a capsule's reach reported apart).
+/// Minimum distance between two convex shapes at world poses; 0 on contact.
+pub(crate) fn convex_distance(a: &Convex, pose_a: &Pose, b: &Convex, pose_b: &Pose) -> f64 {
+    gjk::distance(
+        &gjk::Placed {
+            shape: a,
+            pose: pose_a,
+        },
+        &gjk::Placed {
+            shape: b,
+            pose: pose_b,
+        },
+    )
+}
+
+/// Shapes this close (metres) count as touching.
+pub(crate) const TOUCH: f64 = 1e-9;
+
+/// True when two convex shapes at world poses touch or overlap.
+pub(crate) fn convex_touch(a: &Convex, pose_a: &Pose, b: &Convex, pose_b: &Pose) -> bool {
+    let (a, b) = (
+        gjk::Placed {
+            shape: a,
+            pose: pose_a,
+        },
+        gjk::Placed {
+            shape: b,
+            pose: pose_b,
+        },
+    );
+    !gjk::separated(&a, &b, TOUCH)
+}
+
+/// True when two parry shapes at world poses touch or overlap.
+#[cfg(test)]
 pub(crate) fn posed_intersect(
     a: &dyn parry3d::shape::Shape,
     pose_a: &Pose,
     b: &dyn parry3d::shape::Shape,
     pose_b: &Pose,
 ) -> bool {
-    posed_distance(a, pose_a, b, pose_b) <= 0.0
+    posed_distance(a, pose_a, b, pose_b) <= TOUCH
 }
 
 /// Minimum distance from link `link`'s collision geometry (at `poses`, from
 /// [`Robot::forward_kinematics`]) to `object`; infinite for a link without geometry.
 pub fn link_object_distance(robot: &Robot, poses: &[Pose], link: usize, object: &Object) -> f64 {
     let (so, fo) = shared_shape(&object.shape);
+    let co = Convex::from_parry(&*so).expect("primitives are convex");
     let pose_o = object.pose * fo;
     robot
         .exact_model()
         .link_parts(link)
         .iter()
-        .map(|part| posed_distance(&*part.shape, &(poses[link] * part.origin), &*so, &pose_o))
+        .map(|part| convex_distance(&part.convex, &(poses[link] * part.origin), &co, &pose_o))
         .fold(f64::INFINITY, f64::min)
 }
 
