@@ -38,8 +38,15 @@ pub enum Convex {
         /// Radius.
         r: f64,
     },
-    /// Convex hull of these points.
-    Hull(Vec<V>),
+    /// Convex hull of these points (coordinates in three arrays, scanned in lanes).
+    Hull {
+        /// x of each point.
+        x: Vec<f64>,
+        /// y of each point.
+        y: Vec<f64>,
+        /// z of each point.
+        z: Vec<f64>,
+    },
 }
 
 impl Convex {
@@ -66,7 +73,12 @@ impl Convex {
             });
         }
         if let Some(c) = shape.as_convex_polyhedron() {
-            return Some(Convex::Hull(c.points().iter().map(|p| v(*p)).collect()));
+            let points = c.points();
+            return Some(Convex::Hull {
+                x: points.iter().map(|p| p.x as f64).collect(),
+                y: points.iter().map(|p| p.y as f64).collect(),
+                z: points.iter().map(|p| p.z as f64).collect(),
+            });
         }
         None
     }
@@ -97,10 +109,20 @@ impl Convex {
                 };
                 V::new(x, h.copysign(d.y), z)
             }
-            Convex::Hull(points) => *points
-                .iter()
-                .max_by(|p, q| p.dot(d).total_cmp(&q.dot(d)))
-                .expect("a hull has points"),
+            Convex::Hull { x, y, z } => {
+                // One pass over the coordinate arrays; the first point at the maximum wins.
+                let n = x.len();
+                let (x, y, z) = (&x[..n], &y[..n], &z[..n]);
+                let (mut best, mut at) = (f64::NEG_INFINITY, 0);
+                for i in 0..n {
+                    let v = x[i] * d.x + y[i] * d.y + z[i] * d.z;
+                    if v > best {
+                        best = v;
+                        at = i;
+                    }
+                }
+                V::new(x[at], y[at], z[at])
+            }
         }
     }
 }
