@@ -227,23 +227,6 @@ impl Pose8 {
         }
     }
 
-    /// `self * other`.
-    #[inline(always)]
-    pub fn compose(&self, o: &Pose8) -> Pose8 {
-        let a = &self.r;
-        let b = &o.r;
-        let mut r = [F8::default(); 9];
-        for i in 0..3 {
-            for j in 0..3 {
-                r[i * 3 + j] = a[i * 3] * b[j] + a[i * 3 + 1] * b[3 + j] + a[i * 3 + 2] * b[6 + j];
-            }
-        }
-        Pose8 {
-            r,
-            t: self.apply(o.t),
-        }
-    }
-
     /// The rotation `a · self.r` (`a` row-major).
     #[inline(always)]
     pub fn r_after(&self, a: &[F8; 9]) -> [F8; 9] {
