@@ -11,7 +11,6 @@
 //! checker and the scalar one per free configuration, and per free edge of length 0.5 at the
 //! planner's resolution).
 
-use crate::stats::summary;
 use ember_engine::collision::exact::ExactChecker;
 use ember_engine::collision::SphereChecker;
 use ember_engine::planning::PlannerRng;
@@ -19,6 +18,7 @@ use ember_engine::problems;
 use ember_engine::robot::spheres::cache::{self, SphereCache};
 use ember_engine::robot::{RobotArgs, RobotSpec};
 use ember_engine::Pose;
+use ember_sdk::stats::summary;
 use rand::SeedableRng;
 use std::hint::black_box;
 use std::time::Instant;

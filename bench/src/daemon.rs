@@ -1,6 +1,6 @@
 //! A real `ember run` process for the benchmarks that go through the daemon.
 
-use std::io::{BufRead, BufReader};
+use ember_sdk::launch::launch;
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 
@@ -26,29 +26,22 @@ impl DaemonProcess {
         std::fs::create_dir_all(&dir)?;
         let config_file = dir.join("emberd.toml");
         std::fs::write(&config_file, config)?;
-        let mut child = Command::new(&exe)
-            .args(["run", "--instance", &instance, "--config"])
-            .arg(&config_file)
-            .arg("--db-dir")
-            .arg(&dir)
-            .arg("--record-dir")
-            .arg(dir.join("recordings"))
-            .args(extra)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()?;
-        let mut line = String::new();
-        BufReader::new(child.stdout.as_mut().expect("piped")).read_line(&mut line)?;
-        let daemon = DaemonProcess {
+        let (child, _) = launch(
+            Command::new(&exe)
+                .args(["run", "--instance", &instance, "--config"])
+                .arg(&config_file)
+                .arg("--db-dir")
+                .arg(&dir)
+                .arg("--record-dir")
+                .arg(dir.join("recordings"))
+                .args(extra)
+                .stderr(Stdio::null()),
+        )?;
+        Ok(DaemonProcess {
             child,
             instance,
             dir,
-        };
-        anyhow::ensure!(
-            line.starts_with("emberd ready"),
-            "daemon did not start: {line}"
-        );
-        Ok(daemon)
+        })
     }
 }
 

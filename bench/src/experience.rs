@@ -13,7 +13,7 @@
 //! solved=<k> mean_ms=<f> median_ms=<f> retrieval_us=<f>`.
 
 use crate::learning::{plan_sets, prepare, train_one, EvalOptions, Method};
-use ember_engine::experience::{ExperienceParams, FlameDb, SparkDb};
+use ember_engine::experience::{Database, Experience, ExperienceParams};
 use ember_engine::planning::PlannerParams;
 use ember_engine::problems::ProblemSet;
 use ember_engine::robot::Robot;
@@ -69,15 +69,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         d_radius: args.d_radius.unwrap_or(defaults.d_radius),
         ..defaults
     };
-    let mut spark = SparkDb::new(params.clone());
-    let mut flame = FlameDb::new(params.clone(), MapParams::default().resolution);
+    let mut experience = Experience::new(params.clone(), MapParams::default().resolution);
     let count = args
         .train_count
         .unwrap_or(train.problems.len())
         .min(train.problems.len());
     let t = Instant::now();
     for (i, p) in train.problems.iter().take(count).enumerate() {
-        train_one(&robot, p, args.interpolate, &mut spark, &mut flame)?;
+        train_one(&robot, p, args.interpolate, &mut experience)?;
         if (i + 1) % 50 == 0 || i + 1 == count {
             eprint!(
                 "\rtraining: {}/{count} problems ({:.0} s)",
@@ -91,14 +90,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "trained on {count} problems of {} in {:.1} s: SPARK {} entries / {} configurations, FLAME {} entries / {} configurations",
         train.name,
         t.elapsed().as_secs_f64(),
-        spark.len(),
-        spark.configurations(),
-        flame.len(),
-        flame.configurations()
+        experience.spark.len(),
+        experience.spark.configurations(),
+        experience.flame.len(),
+        experience.flame.configurations()
     );
     if let Some(dir) = &args.db {
-        spark.save(dir.join("spark.emberdb"))?;
-        flame.save(dir.join("flame.emberdb"))?;
+        experience.save_dir(dir)?;
         println!("databases saved in {}", dir.display());
     }
 
@@ -123,7 +121,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for dir in &args.test {
         let set = ProblemSet::load(dir, &robot)?;
         let cases = prepare(&robot, &set.problems)?;
-        let runs = Method::ALL.map(|m| (m, &spark, &flame));
+        let runs = Method::ALL.map(|m| (m, &experience));
         let outcomes = plan_sets(&cases, &runs, &options);
         for (method, o) in Method::ALL.into_iter().zip(outcomes) {
             println!(

@@ -161,7 +161,7 @@ fn measure(instance: &str, args: &Args, recordings: &std::path::Path) -> anyhow:
         planning::plan(&robot, &env, &request, &mut UniformSampler)?;
         local.push(t1.elapsed().as_secs_f64() * 1e6);
     }
-    let pct = crate::stats::quantile;
+    let pct = ember_sdk::stats::quantile;
     let (rt50, rt99) = (pct(&mut round, 0.5), pct(&mut round, 0.99));
     let (lt50, lt99) = (pct(&mut local, 0.5), pct(&mut local, 0.99));
     // The transport alone: requests the daemon refuses before planning (wrong protocol version),

@@ -6,17 +6,18 @@
 //! beforehand, as the daemon keeps it up to date incrementally. A failure counts as the time
 //! limit, as in the paper.
 
-use crate::stats::summary;
-use ember_engine::experience::database::Retrieval;
-use ember_engine::experience::primitive::{octoboxes, spark_pairs};
-use ember_engine::experience::train::learn;
-use ember_engine::experience::{ExperienceParams, FlameDb, GlobalSampler, SparkDb};
-use ember_engine::planning::{self, PlanRequest, PlannerParams, Sampler, UniformSampler};
+use ember_engine::experience::flame::octoboxes;
+use ember_engine::experience::spark::spark_pairs;
+use ember_engine::experience::{
+    self as experience, Database, Experience, GlobalSampler, LocalSampler, Retrieval,
+};
+use ember_engine::planning::{self, PlanRequest, PlannerParams};
 use ember_engine::problems::Problem;
 use ember_engine::robot::Robot;
 use ember_engine::scene::Scene;
 use ember_engine::world::map::{MapParams, OccupancyMap};
 use ember_engine::world::Environment;
+use ember_sdk::stats::summary;
 use ember_sensors::{quarter_vga, sensed_map};
 use std::borrow::Cow;
 use std::time::{Duration, Instant};
@@ -78,8 +79,7 @@ pub fn train_one(
     robot: &Robot,
     problem: &Problem,
     interpolate: Option<f64>,
-    spark: &mut SparkDb,
-    flame: &mut FlameDb,
+    experience: &mut Experience,
 ) -> anyhow::Result<()> {
     let Some(path) = &problem.path else {
         return Ok(());
@@ -88,15 +88,7 @@ pub fn train_one(
         .scene
         .robot_with(robot, &problem.request.start_joints)?;
     let map = map_of(&problem.scene)?;
-    learn(
-        &robot,
-        &problem.scene,
-        Some(&map),
-        path,
-        interpolate,
-        spark,
-        Some(flame),
-    );
+    experience.learn(&robot, &problem.scene, Some(&map), path, interpolate);
     Ok(())
 }
 
@@ -187,30 +179,37 @@ impl Outcome {
     }
 }
 
-/// Retrieves for `case` with `method`.
-fn retrieve<'a>(
+/// The sampler for `case` with `method`: what `experience` retrieves for it (the scene's
+/// primitives are extracted here, as part of the retrieval's time), or the oracle's.
+fn sampler<'a>(
     method: Method,
     case: &'a TestCase,
-    params: &ExperienceParams,
-    spark: &'a SparkDb,
-    flame: &'a FlameDb,
-) -> Retrieval<'a> {
-    match method {
-        Method::Uniform => Retrieval::default(),
-        Method::Spark => spark.retrieve(&spark_pairs(&case.problem.scene, params)),
-        Method::Flame => flame.retrieve(&octoboxes(&case.map)),
+    experience: &'a Experience,
+) -> GlobalSampler<'a> {
+    let m = match method {
+        Method::Uniform => experience::Method::Uniform,
+        Method::Spark => experience::Method::Spark,
+        Method::Flame => experience::Method::Flame,
         Method::Oracle => {
-            let mut r = Retrieval::default();
-            if let Some(path) = &case.problem.path {
-                r.push_sampler(path);
-            }
-            r
+            let path = case.problem.path.as_deref().unwrap_or_default();
+            let r = Retrieval::from_samplers(vec![LocalSampler::from_means(path)]);
+            let p = experience.spark.params();
+            return GlobalSampler::new(r, p.sigma, p.lambda);
         }
-    }
+    };
+    let pairs = match m {
+        experience::Method::Spark => spark_pairs(&case.problem.scene, experience.spark.params()),
+        _ => Vec::new(),
+    };
+    let boxes = match m {
+        experience::Method::Flame => octoboxes(&case.map),
+        _ => Vec::new(),
+    };
+    experience.sampler_for(m, &pairs, &boxes)
 }
 
-/// One method to evaluate: the method and the databases it retrieves from (SPARK, FLAME).
-pub type Run<'d> = (Method, &'d SparkDb, &'d FlameDb);
+/// One method to evaluate: the method and the experience it retrieves from.
+pub type Run<'d> = (Method, &'d Experience);
 
 /// Plans every case with each of `runs`, interleaved: each case is planned by every run in turn
 /// before the next case, so a slow spell of a shared machine slows all of them alike and their
@@ -218,8 +217,8 @@ pub type Run<'d> = (Method, &'d SparkDb, &'d FlameDb);
 pub fn plan_sets(cases: &[TestCase], runs: &[Run], options: &EvalOptions) -> Vec<Outcome> {
     let mut samples = vec![Samples::default(); runs.len()];
     for case in cases {
-        for (&(method, spark, flame), samples) in runs.iter().zip(&mut samples) {
-            samples.plan(case, method, spark, flame, options);
+        for (&(method, experience), samples) in runs.iter().zip(&mut samples) {
+            samples.plan(case, method, experience, options);
         }
     }
     samples
@@ -244,19 +243,13 @@ impl Samples {
         &mut self,
         case: &TestCase,
         method: Method,
-        spark: &SparkDb,
-        flame: &FlameDb,
+        experience: &Experience,
         options: &EvalOptions,
     ) {
-        let params = spark.params();
         let t = Instant::now();
-        let r = retrieve(method, case, params, spark, flame);
-        self.entries.push(r.entries as f64);
-        self.samplers.push(r.samplers.len() as f64);
-        let mut sampler: Box<dyn Sampler + '_> = match method {
-            Method::Uniform => Box::new(UniformSampler),
-            _ => Box::new(GlobalSampler::new(r, params.sigma, params.lambda)),
-        };
+        let mut sampler = sampler(method, case, experience);
+        self.entries.push(sampler.retrieved_entries() as f64);
+        self.samplers.push(sampler.local_samplers() as f64);
         let retrieval_s = t.elapsed().as_secs_f64();
         let p = case.problem;
         let req = PlanRequest {
@@ -270,7 +263,7 @@ impl Samples {
                 ..Default::default()
             },
         };
-        match planning::plan(&case.robot, &case.env, &req, sampler.as_mut()) {
+        match planning::plan(&case.robot, &case.env, &req, &mut sampler) {
             Ok(_) => {
                 self.solved += 1;
                 self.times.push(t.elapsed().as_secs_f64() * 1e3);

@@ -25,7 +25,7 @@ mod plan;
 mod plot;
 mod python;
 mod retrieval;
-mod stats;
+
 mod trajectory;
 mod validity;
 

@@ -9,10 +9,10 @@
 //! Flags: `--res` (0.02), `--max-range` (3.0), `--frames` (5), `--discretize` (OctoMap's option),
 //! `--no-peer` (ours only).
 
-use crate::stats::summary;
 use ember_engine::planning::PlannerRng;
 use ember_engine::problems;
 use ember_engine::world::map::{MapParams, Occupancy, OccupancyMap, VoxelKey};
+use ember_sdk::stats::summary;
 use ember_sensors::{look_at, CameraModel, DepthCamera, NoiseModel};
 use nalgebra::Point3;
 use rand::SeedableRng;

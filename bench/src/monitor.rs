@@ -8,7 +8,7 @@
 //! `RESULT monitor plan_p50_us_on=<f> plan_p99_us_on=<f> plan_p50_us_off=<f> plan_p99_us_off=<f>`.
 
 use crate::daemon::DaemonProcess;
-use crate::stats::quantile;
+use ember_sdk::stats::quantile;
 use ember_sdk::wire::{Method, Point};
 use ember_sdk::{Client, PlanCall, Status};
 use std::sync::atomic::{AtomicU64, Ordering};

@@ -27,13 +27,14 @@
 
 use crate::learning::{plan_sets, prepare, train_one, EvalOptions, Method, Outcome, Run, TestCase};
 use crate::plot::{self, Chart, Series};
-use crate::stats::summary;
-use ember_engine::experience::primitive::{octoboxes, spark_pairs};
-use ember_engine::experience::{ExperienceParams, FlameDb, SparkDb};
+use ember_engine::experience::flame::octoboxes;
+use ember_engine::experience::spark::spark_pairs;
+use ember_engine::experience::{Database, Experience, ExperienceParams, FlameDb, SparkDb};
 use ember_engine::planning::PlannerParams;
 use ember_engine::problems::{self, GenerateOptions, Problem, ProblemSet, Task};
 use ember_engine::robot::Robot;
 use ember_engine::world::map::MapParams;
+use ember_sdk::stats::summary;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -143,8 +144,7 @@ impl Row {
 
 /// SPARK and FLAME databases learned incrementally from the first problems of a set.
 struct Learner {
-    spark: SparkDb,
-    flame: FlameDb,
+    experience: Experience,
     /// Problems of the set learned so far.
     trained: usize,
 }
@@ -152,8 +152,7 @@ struct Learner {
 impl Learner {
     fn new(params: &ExperienceParams) -> Self {
         Learner {
-            spark: SparkDb::new(params.clone()),
-            flame: FlameDb::new(params.clone(), MapParams::default().resolution),
+            experience: Experience::new(params.clone(), MapParams::default().resolution),
             trained: 0,
         }
     }
@@ -168,7 +167,7 @@ impl Learner {
     ) -> anyhow::Result<()> {
         let n = n.min(problems.len());
         for p in &problems[self.trained.min(n)..n] {
-            train_one(robot, p, interpolate, &mut self.spark, &mut self.flame)?;
+            train_one(robot, p, interpolate, &mut self.experience)?;
         }
         self.trained = self.trained.max(n);
         Ok(())
@@ -351,11 +350,12 @@ fn run_dataset(
         let t = Instant::now();
         pick.train_to(robot, &train.problems, n, args.interpolate)?;
         let train_s = t.elapsed().as_secs_f64();
-        let (spark, flame) = (&pick.spark, &pick.flame);
+        let exp = &pick.experience;
+        let (spark, flame) = (&exp.spark, &exp.flame);
         let runs = [
-            ("uniform", (Method::Uniform, spark, flame)),
-            ("spark", (Method::Spark, spark, flame)),
-            ("flame", (Method::Flame, spark, flame)),
+            ("uniform", (Method::Uniform, exp)),
+            ("spark", (Method::Spark, exp)),
+            ("flame", (Method::Flame, exp)),
         ];
         let row = Row::planned(n, &cases, &runs, options);
         eprintln!(
@@ -371,20 +371,20 @@ fn run_dataset(
         }
         place.train_to(robot, &place_train, n, args.interpolate)?;
         let runs = [
-            ("uniform", (Method::Uniform, spark, flame)),
-            ("spark", (Method::Spark, &place.spark, &place.flame)),
-            ("flame", (Method::Flame, &place.spark, &place.flame)),
-            ("spark_tx", (Method::Spark, spark, flame)),
-            ("flame_tx", (Method::Flame, spark, flame)),
+            ("uniform", (Method::Uniform, exp)),
+            ("spark", (Method::Spark, &place.experience)),
+            ("flame", (Method::Flame, &place.experience)),
+            ("spark_tx", (Method::Spark, exp)),
+            ("flame_tx", (Method::Flame, exp)),
         ];
         let row = Row::planned(n, &place_cases, &runs, options);
         eprintln!("  place N={n:<4}: {}", row.means());
         transfer.push(row);
     }
-    let (spark, flame) = (&pick.spark, &pick.flame);
+    let exp = &pick.experience;
     let runs = [
-        ("uniform", (Method::Uniform, spark, flame)),
-        ("oracle", (Method::Oracle, spark, flame)),
+        ("uniform", (Method::Uniform, exp)),
+        ("oracle", (Method::Oracle, exp)),
     ];
     let oracle = Row::planned(0, &cases, &runs, options);
     eprintln!("  oracle: {}", oracle.means());

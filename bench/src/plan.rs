@@ -10,11 +10,11 @@
 //! split; a failure counts as the time limit in the mean,
 //! as in the paper.
 
-use crate::stats::summary;
 use ember_engine::planning::PlanError;
 use ember_engine::planning::{self, PlanRequest, PlannerParams, UniformSampler};
 use ember_engine::problems::ProblemSet;
 use ember_engine::robot::RobotArgs;
+use ember_sdk::stats::summary;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 

@@ -219,8 +219,8 @@ mod tests {
         };
         let files = write(&dir.join("chart"), &chart).unwrap();
         if !font() {
-            // CI installs a font; elsewhere a machine without one skips plots by design.
-            assert!(std::env::var_os("CI").is_none(), "CI must have a font");
+            // A machine without a font skips plots by design (`.ci/run` installs one and
+            // checks that it is there, so CI takes the branch below).
             assert!(files.is_empty());
             return;
         }

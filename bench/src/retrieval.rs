@@ -18,14 +18,16 @@
 //! size.
 
 use crate::learning::map_of;
-use crate::stats::summary;
-use ember_engine::experience::database::Retrieval;
-use ember_engine::experience::primitive::{octoboxes, spark_pairs};
-use ember_engine::experience::{ExperienceParams, FlameDb, OctoboxPrimitive, SparkDb, SparkPair};
+use ember_engine::experience::flame::octoboxes;
+use ember_engine::experience::spark::spark_pairs;
+use ember_engine::experience::{
+    Database, ExperienceParams, FlameDb, Octobox, Retrieval, SparkDb, SparkPair,
+};
 use ember_engine::planning::PlannerRng;
 use ember_engine::problems;
 use ember_engine::robot::Robot;
 use ember_engine::world::map::MapParams;
+use ember_sdk::stats::summary;
 use rand::SeedableRng;
 use std::time::Instant;
 
@@ -100,7 +102,7 @@ fn flame(
     let params = ExperienceParams::default();
     let map_params = MapParams::default();
     let n_queries = args.queries.min(20);
-    let queries: Vec<Vec<OctoboxPrimitive>> = (0..n_queries)
+    let queries: Vec<Vec<Octobox>> = (0..n_queries)
         .map(|_| Ok(octoboxes(&map_of(&problems::sample_scene(spec, rng))?)))
         .collect::<anyhow::Result<_>>()?;
     let mut db = FlameDb::new(params, map_params.resolution);

@@ -15,10 +15,10 @@
 //! p95_us=<f> median_duration_s=<f> toppra_median_us=<f> duration_ratio_median=<ours/toppra>
 //! duration_ratio_max=<f>` per kind.
 
-use crate::stats::summary;
 use ember_engine::problems::Task;
 use ember_engine::robot::Robot;
 use ember_engine::trajectory::{time_parameterize, TimingParams, Trajectory};
+use ember_sdk::stats::summary;
 use rand::{Rng, SeedableRng};
 use std::path::PathBuf;
 use std::time::Instant;

@@ -2,11 +2,13 @@
 //! immutable snapshots the planner works on.
 
 use crate::config::Config;
-use ember_engine::experience::primitive::{octoboxes, spark_pairs_of, OctoboxPrimitive, SparkPair};
+use ember_engine::experience::flame::{octoboxes, Octobox};
+use ember_engine::experience::spark::{spark_pairs_of, SparkPair};
 use ember_engine::experience::ExperienceParams;
+use ember_engine::robot::spheres::PlacedSpheres;
 use ember_engine::robot::Robot;
 use ember_engine::scene::Scene;
-use ember_engine::world::map::{MapParams, OccupancyMap, RobotFilter};
+use ember_engine::world::map::{MapParams, OccupancyMap};
 use ember_engine::world::{Environment, Object};
 use std::sync::Arc;
 
@@ -19,7 +21,7 @@ pub struct Snapshot {
     /// The occupancy map (FLAME's input; an obstacle too when configured).
     pub map: Arc<OccupancyMap>,
     /// The map's non-empty octoboxes (FLAME's primitives), extracted once per cloud.
-    pub octoboxes: Arc<Vec<OctoboxPrimitive>>,
+    pub octoboxes: Arc<Vec<Octobox>>,
     /// Objects (+ map when configured) for collision checking.
     pub env: Environment,
     /// Counts object changes: equal versions, equal objects.
@@ -31,7 +33,7 @@ pub struct World {
     scene: Scene,
     pairs: Vec<SparkPair>,
     map: Arc<OccupancyMap>,
-    octoboxes: Arc<Vec<OctoboxPrimitive>>,
+    octoboxes: Arc<Vec<Octobox>>,
     joints: Option<Vec<f64>>,
     params: ExperienceParams,
     use_map: bool,
@@ -108,7 +110,7 @@ impl World {
             .joints
             .as_ref()
             .filter(|q| robot.validate(q).is_ok())
-            .map(|q| RobotFilter::new(robot, q, self.padding));
+            .map(|q| PlacedSpheres::at(robot, q, self.padding));
         let map = Arc::make_mut(&mut self.map);
         let report = map.insert_cloud(points, sensor_pose, filter.as_ref());
         if !report.changed.is_empty() {

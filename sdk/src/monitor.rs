@@ -66,6 +66,32 @@ pub struct StatusDoc {
     pub monitor_dropped: u64,
 }
 
+impl From<&StatusDoc> for crate::wire::StatusReply {
+    /// The status service's reply: the document's counters in wire form.
+    fn from(d: &StatusDoc) -> Self {
+        crate::wire::StatusReply {
+            version: crate::wire::PROTOCOL_VERSION,
+            dof: d.dof,
+            uptime_s: d.uptime_s,
+            clouds: d.inputs.clouds,
+            objects: d.inputs.objects,
+            joint_states: d.inputs.joint_states,
+            rejected: d.inputs.rejected,
+            plans: d.plans.total,
+            solved: d.plans.solved,
+            cloud_latency_p50_us: d.inputs.cloud_latency_p50_us,
+            cloud_latency_p99_us: d.inputs.cloud_latency_p99_us,
+            last_cloud_stamp_ns: d.inputs.last_cloud_stamp_ns,
+            map_blocks: d.map.blocks,
+            world_objects: d.world.objects,
+            spark_entries: d.experience.spark_entries,
+            flame_entries: d.experience.flame_entries,
+            recorded: d.recording.written,
+            recording_dropped: d.recording.dropped,
+        }
+    }
+}
+
 /// Input counters and rates.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default)]

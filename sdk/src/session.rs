@@ -9,7 +9,8 @@
 //! `TOPIC=object:ID:SHAPE:D1,D2,D3` (`geometry_msgs/msg/PoseStamped` of a tracked object with
 //! shape `box`, `cylinder`, `sphere` or `capsule` and its dimensions).
 
-use crate::recording::{self, PlanRequest, PlanResponse, PointCloud2, PoseStamped};
+pub use crate::recording::Event;
+use crate::recording::{self, PointCloud2, PoseStamped};
 use crate::wire::{self, ObjectUpdate, PROTOCOL_VERSION};
 use std::collections::HashMap;
 use std::path::Path;
@@ -143,36 +144,6 @@ impl TopicMap {
     }
 }
 
-/// One recorded event.
-pub enum Event {
-    /// An object update, in wire form.
-    Object(ObjectUpdate),
-    /// Joint positions with their names (empty names: already in planning-group order).
-    Joints {
-        /// Joint names.
-        names: Vec<String>,
-        /// Positions, radians or metres.
-        positions: Vec<f64>,
-    },
-    /// A cloud with its sensor pose (wire form `[x, y, z, qx, qy, qz, qw]`).
-    Cloud {
-        /// Sensor frame name.
-        frame_id: String,
-        /// Capture time, ns since the Unix epoch.
-        stamp_ns: u64,
-        /// Sensor pose in the robot base frame.
-        pose: [f64; 7],
-        /// Points in the sensor frame, metres.
-        points: Vec<[f32; 3]>,
-    },
-    /// A plan request as received.
-    PlanRequest(PlanRequest),
-    /// A plan reply as sent.
-    PlanResponse(PlanResponse),
-    /// A plan's timed trajectory as sent (after its reply, same stamp).
-    PlanTrajectory(recording::JointTrajectory),
-}
-
 /// A recording loaded in memory.
 pub struct Session {
     path: String,
@@ -245,14 +216,7 @@ impl Session {
             let event = match (topic, topics.role(topic)) {
                 (recording::topic::OBJECTS, _) => {
                     let o: recording::ObjectUpdate = recording::decode(&m.data).map_err(bad)?;
-                    Event::Object(ObjectUpdate {
-                        version: PROTOCOL_VERSION,
-                        shape: o.shape,
-                        stamp_ns: o.header.stamp.ns(),
-                        id: wire::name(&o.id),
-                        dims: o.dims,
-                        pose: o.pose.to_wire(),
-                    })
+                    Event::Object(ObjectUpdate::from(&o))
                 }
                 (recording::topic::PLAN_REQUEST, _) => {
                     Event::PlanRequest(recording::decode(&m.data).map_err(bad)?)
@@ -266,6 +230,7 @@ impl Session {
                 (_, Some(Role::Joints)) => {
                     let js: recording::JointState = recording::decode(&m.data).map_err(bad)?;
                     Event::Joints {
+                        stamp_ns: js.header.stamp.ns(),
                         names: js.name,
                         positions: js.position,
                     }

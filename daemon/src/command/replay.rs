@@ -8,7 +8,7 @@
 use super::group_order;
 use crate::cli::ReplayArgs;
 use ember_sdk::session::{Event, Session, TopicMap};
-use ember_sdk::wire::{PlanRequestHeader, Point};
+use ember_sdk::wire::Point;
 use ember_sdk::Client;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
@@ -67,7 +67,7 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
                     client.publish_object_raw(u)?;
                     sent += 1;
                 }
-                Event::Joints { names, positions } => {
+                Event::Joints { names, positions, .. } => {
                     let Some(q) = group_order(&robot, &names, &positions) else {
                         return Ok(()); // Not the robot's joints: nothing to send.
                     };
@@ -87,19 +87,7 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
                 Event::PlanRequest(r) => {
                     // The world must hold everything recorded before the request.
                     wait_taken(&client, base, sent, 0)?;
-                    let header = PlanRequestHeader {
-                        version: r.version,
-                        dof: r.dof,
-                        goal_kind: r.goal_kind,
-                        goal_count: r.goal_count,
-                        method: r.method,
-                        flags: r.flags,
-                        time_limit_s: r.time_limit_s,
-                        seed: r.seed,
-                        pose: r.pose,
-                        position_tolerance: r.position_tolerance,
-                        orientation_tolerance: r.orientation_tolerance,
-                    };
+                    let header = r.wire_header();
                     let timeout = Duration::from_secs_f64(r.time_limit_s.max(1.0) + 30.0);
                     let reply = client.plan_raw(header, &r.values, timeout)?;
                     last_reply = Some((r.header.stamp.ns(), reply.path.concat(), reply.header.status));

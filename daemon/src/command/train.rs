@@ -5,10 +5,9 @@
 
 use crate::cli::TrainArgs;
 use crate::config::Config;
-use crate::service::ingest::object_of;
+use crate::service::objects::object_of;
 use crate::world::World;
-use ember_engine::experience::train::learn;
-use ember_engine::experience::{ExperienceParams, FlameDb, SparkDb};
+use ember_engine::experience::{Database, Experience, ExperienceParams};
 use ember_engine::scene::pose_from_xyz_xyzw;
 use ember_sdk::session::{Event, Session, TopicMap};
 use ember_sdk::wire;
@@ -18,19 +17,19 @@ use std::process::ExitCode;
 pub fn run(args: TrainArgs) -> anyhow::Result<ExitCode> {
     let config = Config::load(args.config.as_deref())?;
     let robot = super::load_robot(&config.robot_spec())?;
-    let spark_path = args.db.join("spark.emberdb");
-    let flame_path = args.db.join("flame.emberdb");
-    let mut spark = if spark_path.exists() {
-        SparkDb::load(&spark_path)?
-    } else {
-        SparkDb::new(ExperienceParams::default())
-    };
-    let mut flame = if flame_path.exists() {
-        FlameDb::load(&flame_path)?
-    } else {
-        FlameDb::new(ExperienceParams::default(), config.map.resolution)
-    };
-    let (spark0, flame0) = (spark.len(), flame.len());
+    let (mut experience, set_aside) = Experience::load_dir(
+        &args.db,
+        &ExperienceParams::default(),
+        config.map.resolution,
+    )?;
+    for s in set_aside {
+        eprintln!(
+            "warning: {}; moved to {} and starting empty",
+            s.error,
+            s.moved_to.display()
+        );
+    }
+    let (spark0, flame0) = (experience.spark.len(), experience.flame.len());
     let topics = TopicMap::parse(&args.topic_map)?;
     let mut plans = 0usize;
     for file in &args.files {
@@ -51,7 +50,9 @@ pub fn run(args: TrainArgs) -> anyhow::Result<ExitCode> {
                     }
                     Err(_) => {} // The daemon rejected it too.
                 },
-                Event::Joints { names, positions } => {
+                Event::Joints {
+                    names, positions, ..
+                } => {
                     if let Some(q) = super::group_order(&robot, &names, &positions)
                         .filter(|q| robot.validate(q).is_ok())
                     {
@@ -73,14 +74,12 @@ pub fn run(args: TrainArgs) -> anyhow::Result<ExitCode> {
                         let path: Vec<Vec<f64>> =
                             r.path.chunks_exact(dof).map(<[f64]>::to_vec).collect();
                         let snap = world.snapshot();
-                        learn(
+                        experience.learn(
                             &robot,
                             &snap.scene,
                             Some(&snap.map),
                             &path,
                             args.interpolate,
-                            &mut spark,
-                            Some(&mut flame),
                         );
                         plans += 1;
                     }
@@ -97,8 +96,8 @@ pub fn run(args: TrainArgs) -> anyhow::Result<ExitCode> {
             );
         }
     }
-    spark.save(&spark_path)?;
-    flame.save(&flame_path)?;
+    experience.save_dir(&args.db)?;
+    let (spark, flame) = (&experience.spark, &experience.flame);
     println!(
         "learned from {plans} solved plans: SPARK {} entries (+{}), FLAME {} entries (+{}); saved in {}",
         spark.len(),

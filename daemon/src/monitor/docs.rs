@@ -2,8 +2,8 @@
 
 use crate::config::Config;
 use crate::recorder::RecorderStats;
-use crate::service::ingest::SnapshotCell;
 use crate::service::plan::Answer;
+use crate::service::SnapshotCell;
 use crate::service::Stats;
 use ember_engine::robot::Robot;
 use ember_sdk::monitor::{

@@ -29,7 +29,7 @@ pub struct Monitor {
 
 impl Monitor {
     /// Opens the Zenoh session, declares the token and queryables, starts the publisher thread.
-    pub fn start(config: &MonitorConfig, sources: Sources) -> anyhow::Result<Monitor> {
+    pub fn start(config: &MonitorConfig, sources: Arc<Sources>) -> anyhow::Result<Monitor> {
         let options = session::SessionOptions {
             mode: &config.mode,
             listen: &config.listen,
@@ -57,7 +57,6 @@ impl Monitor {
             }
             Err(e) => return Err(e),
         };
-        let sources = Arc::new(sources);
         let (tx, rx) = sync_channel(config.queue);
         let mut publisher = Publisher::declare(zenoh, sources.clone(), config)?;
         let thread = std::thread::Builder::new()

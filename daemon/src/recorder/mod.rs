@@ -14,7 +14,7 @@
 //! `/ember/plan_response` (`ember_msgs/msg/PlanRequest`, `.../PlanResponse`). Log time is the
 //! daemon's receive (or reply) time; header stamps are the sender's.
 
-use ember_sdk::recording::{self as messages, encode, topic, Header, Time};
+use ember_sdk::recording::{self as messages, Event};
 use std::collections::BTreeMap;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
@@ -24,44 +24,8 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tracing::{error, info, warn};
 
-/// One thing to record.
-pub enum Record {
-    /// A cloud: points in the sensor frame, sensor pose (wire form), frame id, stamp.
-    Cloud {
-        recv_ns: u64,
-        stamp_ns: u64,
-        frame_id: String,
-        pose: [f64; 7],
-        points: Vec<[f32; 3]>,
-    },
-    /// A joint state in group order.
-    Joints {
-        recv_ns: u64,
-        stamp_ns: u64,
-        names: Vec<String>,
-        positions: Vec<f64>,
-    },
-    /// An object update.
-    Object {
-        recv_ns: u64,
-        update: messages::ObjectUpdate,
-    },
-    /// A plan request as received.
-    PlanRequest {
-        recv_ns: u64,
-        request: messages::PlanRequest,
-    },
-    /// A plan response as sent.
-    PlanResponse {
-        recv_ns: u64,
-        response: messages::PlanResponse,
-    },
-    /// A plan's timed trajectory as sent.
-    PlanTrajectory {
-        recv_ns: u64,
-        trajectory: messages::JointTrajectory,
-    },
-}
+/// One thing to record: an event and the daemon's receive (or reply) time, ns.
+pub type Record = (u64, Event);
 
 /// Recorder settings.
 #[derive(Debug, Clone)]
@@ -96,9 +60,10 @@ pub struct Recorder {
 }
 
 impl Recorder {
-    /// Queues a record; drops (and counts) it when the writer is behind.
-    pub fn record(&self, r: Record) {
-        match self.tx.try_send(r) {
+    /// Queues `event`, received (or sent) at `recv_ns`; drops (and counts) it when the writer
+    /// is behind.
+    pub fn record(&self, recv_ns: u64, event: Event) {
+        match self.tx.try_send((recv_ns, event)) {
             Ok(()) => {}
             Err(TrySendError::Full(_)) | Err(TrySendError::Disconnected(_)) => {
                 let n = self.stats.dropped.fetch_add(1, Ordering::Relaxed) + 1;
@@ -212,65 +177,12 @@ impl SessionWriter {
     }
 }
 
-fn header(stamp_ns: u64, frame: &str) -> Header {
-    Header {
-        stamp: Time::from_ns(stamp_ns),
-        frame_id: frame.into(),
-    }
-}
-
-fn write_record(w: &mut SessionWriter, r: Record) -> anyhow::Result<u64> {
+/// Writes one record; returns the bytes written.
+fn write_record(w: &mut SessionWriter, (recv_ns, event): Record) -> anyhow::Result<u64> {
     let mut n = 0;
-    match r {
-        Record::Cloud {
-            recv_ns,
-            stamp_ns,
-            frame_id,
-            pose,
-            points,
-        } => {
-            let cloud = messages::PointCloud2::xyz(header(stamp_ns, &frame_id), &points);
-            let data = encode(&cloud);
-            w.write(topic::CLOUD, recv_ns, stamp_ns, &data)?;
-            let ps = messages::PoseStamped {
-                header: header(stamp_ns, "base_link"),
-                pose: messages::Pose::from_wire(pose),
-            };
-            w.write(topic::CLOUD_POSE, recv_ns, stamp_ns, &encode(&ps))?;
-            n += data.len() as u64;
-        }
-        Record::Joints {
-            recv_ns,
-            stamp_ns,
-            names,
-            positions,
-        } => {
-            let js = messages::JointState {
-                header: header(stamp_ns, "base_link"),
-                name: names,
-                position: positions,
-                velocity: vec![],
-                effort: vec![],
-            };
-            w.write(topic::JOINTS, recv_ns, stamp_ns, &encode(&js))?;
-        }
-        Record::Object { recv_ns, update } => {
-            let stamp = update.header.stamp.ns();
-            w.write(topic::OBJECTS, recv_ns, stamp, &encode(&update))?;
-        }
-        Record::PlanRequest { recv_ns, request } => {
-            w.write(topic::PLAN_REQUEST, recv_ns, recv_ns, &encode(&request))?;
-        }
-        Record::PlanResponse { recv_ns, response } => {
-            w.write(topic::PLAN_RESPONSE, recv_ns, recv_ns, &encode(&response))?;
-        }
-        Record::PlanTrajectory {
-            recv_ns,
-            trajectory,
-        } => {
-            let stamp = trajectory.header.stamp.ns();
-            w.write(topic::PLAN_TRAJECTORY, recv_ns, stamp, &encode(&trajectory))?;
-        }
+    for (topic, publish_ns, data) in event.messages(recv_ns) {
+        w.write(topic, recv_ns, publish_ns, &data)?;
+        n += data.len() as u64;
     }
     Ok(n)
 }

@@ -1,10 +1,28 @@
-//! The daemon's iceoryx2 services: `ingest` (clouds, objects, joint states → world model, on its
-//! own thread) and `plan` (plan and status requests, on the main thread).
+//! The daemon's boundary: one module per iceoryx2 service, each owning its port and decoding
+//! the wire payload into engine terms or a typed [`Rejection`]:
+//! - [`cloud`], [`objects`], [`joints`]: sensor and world inputs, read by the [`ingest`] thread,
+//!   which folds them into the world model and publishes snapshots;
+//! - [`plan`]: plan requests, answered on the main thread; [`status`]: the counters.
+//!
+//! `command/run.rs` only wires them together.
 
+pub mod cloud;
 pub mod ingest;
+pub mod joints;
+pub mod objects;
 pub mod plan;
+pub mod rejection;
+pub mod status;
 
-use std::sync::Mutex;
+pub use rejection::Rejection;
+
+use crate::world::Snapshot;
+use ember_engine::experience::{Database, Experience};
+use ember_sdk::wire::PlanResponseHeader;
+use std::sync::{Arc, Mutex};
+
+/// Shared handle to the latest world snapshot (written by ingest, read by planning).
+pub type SnapshotCell = Arc<Mutex<Arc<Snapshot>>>;
 
 /// Counters shared by the threads (read by the status service and the monitor).
 #[derive(Debug, Default)]
@@ -12,6 +30,33 @@ pub struct Stats {
     pub inner: Mutex<StatsInner>,
 }
 
+impl Stats {
+    /// Counts an answered request (and the databases' sizes); returns its sequence number.
+    pub fn planned(&self, h: &PlanResponseHeader, experience: &Experience) -> u64 {
+        let mut st = self.inner.lock().expect("stats lock");
+        st.plans += 1;
+        st.solved += (h.status == 0) as u64;
+        st.plan_latency_us.push(h.total_us);
+        st.spark_entries = experience.spark.len() as u64;
+        st.flame_entries = experience.flame.len() as u64;
+        st.plans
+    }
+
+    /// Records the databases' sizes after learning.
+    pub fn learned(&self, experience: &Experience) {
+        let mut st = self.inner.lock().expect("stats lock");
+        st.spark_entries = experience.spark.len() as u64;
+        st.flame_entries = experience.flame.len() as u64;
+    }
+
+    /// Counts a refused input, and logs why.
+    pub fn rejected(&self, why: &Rejection) {
+        tracing::warn!("rejected input: {why}");
+        self.inner.lock().expect("stats lock").rejected += 1;
+    }
+}
+
+/// The counters (see [`ember_sdk::monitor::StatusDoc`], which they are published as).
 #[derive(Debug, Default)]
 pub struct StatsInner {
     pub clouds: u64,
@@ -60,9 +105,8 @@ impl Recent {
         if v.is_empty() {
             return (0.0, 0.0);
         }
-        v.sort_by(f64::total_cmp);
-        let at = |q: f64| v[((v.len() as f64 * q).ceil() as usize).clamp(1, v.len()) - 1];
-        (at(0.5), at(0.99))
+        let q = ember_sdk::stats::quantile;
+        (q(&mut v, 0.5), q(&mut v, 0.99))
     }
 }
 

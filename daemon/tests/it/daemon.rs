@@ -5,9 +5,9 @@ use ember_engine::collision::checker::DEFAULT_RESOLUTION;
 use ember_engine::planning::path_is_valid;
 use ember_engine::robot::Robot;
 use ember_engine::scene::Scene;
+use ember_sdk::launch::launch;
 use ember_sdk::wire::{self, Method, PlanRequestHeader, Point, ShapeKind, PROTOCOL_VERSION};
 use ember_sdk::{Client, PlanCall, Status};
-use std::io::{BufRead, BufReader};
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -38,27 +38,23 @@ impl Daemon {
     }
 
     fn start_with(instance: String, db_dir: PathBuf, extra: &[&str]) -> Daemon {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_ember"))
-            .args([
-                "run",
-                "--instance",
-                &instance,
-                "--db-dir",
-                db_dir.to_str().unwrap(),
-                "--record-dir",
-                db_dir.join("recordings").to_str().unwrap(),
-            ])
-            .args(extra)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("ember run starts");
-        let mut line = String::new();
-        BufReader::new(child.stdout.as_mut().unwrap())
-            .read_line(&mut line)
-            .unwrap();
-        assert!(line.starts_with("emberd ready"), "daemon said: {line}");
-        let recording = PathBuf::from(line.trim().rsplit("recording ").next().unwrap());
+        let (child, ready) = launch(
+            Command::new(env!("CARGO_BIN_EXE_ember"))
+                .args([
+                    "run",
+                    "--instance",
+                    &instance,
+                    "--db-dir",
+                    db_dir.to_str().unwrap(),
+                    "--record-dir",
+                    db_dir.join("recordings").to_str().unwrap(),
+                ])
+                .args(extra)
+                .stderr(Stdio::null()),
+        )
+        .expect("ember run starts");
+        assert_eq!(ready.instance, instance);
+        let recording = ready.recording.unwrap_or_default();
         Daemon {
             child,
             instance,
@@ -411,7 +407,8 @@ fn sigterm_saves_the_database_and_sigkill_allows_an_immediate_restart() {
     let mut d = d;
     let code = d.child.wait().unwrap();
     assert!(code.success(), "clean exit: {code:?}");
-    assert!(db_dir.join("spark.emberdb").exists() && db_dir.join("flame.emberdb").exists());
+    let files = ember_engine::experience::Experience::files(&db_dir);
+    assert!(files.iter().all(|f| f.exists()), "{files:?}");
     std::mem::forget(d); // keep the database folder for the restart
 
     let d = Daemon::start_with(instance.clone(), db_dir.clone(), &["--no-monitor"]);

@@ -1,6 +1,6 @@
 //! `ember demo`: the main job, run briefly as a user would; its summary and the files it writes.
 
-use ember_engine::experience::{FlameDb, SparkDb};
+use ember_engine::experience::{Database, Experience};
 use ember_sdk::session::{Event, Session, SessionError, TopicMap};
 use ember_sdk::wire::FLAG_NO_LEARN;
 use std::collections::BTreeMap;
@@ -74,9 +74,9 @@ fn the_demo_plans_with_every_method_through_the_daemon_and_keeps_its_session() {
     assert_eq!(PathBuf::from(&files["database"]), db);
 
     // The database learned from the uniform plans only (one per solved episode at most).
-    let spark = SparkDb::load(db.join("spark.emberdb")).unwrap();
-    let flame = FlameDb::load(db.join("flame.emberdb")).unwrap();
-    assert!(spark.len() + flame.len() > 0, "nothing learned");
+    let (exp, aside) = Experience::load_dir(&db, &Default::default(), 0.02).unwrap();
+    assert!(aside.is_empty(), "{aside:?}");
+    assert!(exp.spark.len() + exp.flame.len() > 0, "nothing learned");
 
     // The recording holds the sensors' stream and every plan, flags included.
     let recording = PathBuf::from(&files["recording"]);

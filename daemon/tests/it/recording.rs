@@ -294,10 +294,11 @@ fn training_from_a_recording_fills_the_databases() {
         String::from_utf8_lossy(&out.stderr)
     );
     assert!(text.starts_with("learned from 1 solved plans"), "{text}");
-    let spark = ember_engine::experience::SparkDb::load(db.join("spark.emberdb")).unwrap();
-    let flame = ember_engine::experience::FlameDb::load(db.join("flame.emberdb")).unwrap();
-    assert!(!spark.is_empty(), "{text}");
-    assert!(!flame.is_empty(), "{text}");
+    use ember_engine::experience::{Database, Experience};
+    let (exp, aside) = Experience::load_dir(&db, &Default::default(), 0.02).unwrap();
+    assert!(aside.is_empty(), "{aside:?}");
+    assert!(!exp.spark.is_empty(), "{text}");
+    assert!(!exp.flame.is_empty(), "{text}");
 }
 
 const FIXTURE: &str = "sessions/table_session.mcap";

@@ -5,8 +5,10 @@
 //! beside the target, fsyncs it, renames it over the target and fsyncs the folder, so a crash
 //! leaves either the old or the new database, never a torn one.
 
-use super::database::{FlameDb, SparkDb};
-use super::primitive::{BoxPrimitive, OctoboxPrimitive, SparkPair};
+use super::database::Database;
+use super::flame::{FlameDb, Octobox};
+use super::sampler::LocalSampler;
+use super::spark::{BoxPrimitive, SparkDb, SparkPair};
 use super::ExperienceParams;
 use crate::scene::pose_from_xyz_xyzw;
 use std::path::Path;
@@ -110,10 +112,10 @@ impl Writer {
             self.f64(v);
         }
     }
-    fn configs(&mut self, dof: usize, c: &[Vec<f64>]) {
-        self.u32(c.len() as u32);
-        for q in c {
-            debug_assert_eq!(q.len(), dof);
+    fn sampler(&mut self, dof: usize, s: &LocalSampler) {
+        self.u32(s.len() as u32);
+        debug_assert!(s.is_empty() || s.dof() == dof);
+        for q in s.means() {
             for v in q {
                 self.f64(*v);
             }
@@ -207,6 +209,16 @@ impl Reader<'_> {
         (0..n)
             .map(|_| (0..dof).map(|_| self.f64()).collect())
             .collect()
+    }
+    /// Ends the payload: nothing may follow.
+    fn finish(&self) -> Result<(), DbError> {
+        if self.pos != self.data.len() {
+            return Err(DbError::Corrupt {
+                path: self.path.into(),
+                what: "trailing bytes".into(),
+            });
+        }
+        Ok(())
     }
     fn boxp(&mut self) -> Result<BoxPrimitive, DbError> {
         let v: Vec<f64> = (0..10).map(|_| self.f64()).collect::<Result<_, _>>()?;
@@ -328,93 +340,81 @@ impl Loaded {
     }
 }
 
-fn dof_of<'a>(mut values: impl Iterator<Item = &'a Vec<Vec<f64>>>) -> usize {
-    values.find_map(|v| v.first().map(Vec::len)).unwrap_or(0)
+fn dof_of<'a>(mut samplers: impl Iterator<Item = &'a LocalSampler>) -> usize {
+    samplers
+        .find(|s| !s.is_empty())
+        .map_or(0, LocalSampler::dof)
 }
 
-impl SparkDb {
-    /// Saves atomically to `path`.
-    pub fn save(&self, path: impl AsRef<Path>) -> Result<(), DbError> {
-        let mut w = Writer::default();
-        w.params(&self.params);
-        let dof = dof_of(self.values.iter());
-        w.u32(dof as u32);
-        w.u64(self.keys.len() as u64);
-        for (k, v) in self.entries() {
-            w.boxp(&k.a);
-            w.boxp(&k.b);
-            w.str(&k.names[0]);
-            w.str(&k.names[1]);
-            w.configs(dof, v);
-        }
-        save(path.as_ref(), KIND_SPARK, &w.0)
+/// Saves a SPARK database atomically to `path`.
+pub(crate) fn save_spark(db: &SparkDb, path: &Path) -> Result<(), DbError> {
+    let mut w = Writer::default();
+    w.params(db.params());
+    let dof = dof_of(db.samplers().iter());
+    w.u32(dof as u32);
+    w.u64(db.len() as u64);
+    for (k, s) in db.entries() {
+        w.boxp(&k.a);
+        w.boxp(&k.b);
+        w.str(&k.names[0]);
+        w.str(&k.names[1]);
+        w.sampler(dof, s);
     }
-
-    /// Loads a database saved by [`SparkDb::save`].
-    pub fn load(path: impl AsRef<Path>) -> Result<SparkDb, DbError> {
-        let file = Loaded::open(path.as_ref(), KIND_SPARK)?;
-        let mut r = file.reader();
-        let params = r.params()?;
-        let dof = r.u32()? as usize;
-        let n = r.u64()? as usize;
-        let mut db = SparkDb::new(params);
-        for _ in 0..n {
-            let a = r.boxp()?;
-            let b = r.boxp()?;
-            let names = [r.str()?, r.str()?];
-            let configs = r.configs(dof)?;
-            db.insert(SparkPair { a, b, names }, configs);
-        }
-        if r.pos != file.payload.len() {
-            return Err(DbError::Corrupt {
-                path: file.path.clone(),
-                what: "trailing bytes".into(),
-            });
-        }
-        Ok(db)
-    }
+    save(path, KIND_SPARK, &w.0)
 }
 
-impl FlameDb {
-    /// Saves atomically to `path`.
-    pub fn save(&self, path: impl AsRef<Path>) -> Result<(), DbError> {
-        let mut w = Writer::default();
-        w.params(&self.params);
-        w.f64(self.resolution);
-        let dof = dof_of(self.values.iter());
-        w.u32(dof as u32);
-        w.u64(self.keys.len() as u64);
-        for (k, v) in self.entries() {
-            for c in k.key {
-                w.i32(c);
-            }
-            w.u64(k.mask);
-            w.configs(dof, v);
-        }
-        save(path.as_ref(), KIND_FLAME, &w.0)
+/// Loads a database saved by [`save_spark`].
+pub(crate) fn load_spark(path: &Path) -> Result<SparkDb, DbError> {
+    let file = Loaded::open(path, KIND_SPARK)?;
+    let mut r = file.reader();
+    let params = r.params()?;
+    let dof = r.u32()? as usize;
+    let n = r.u64()? as usize;
+    let mut db = SparkDb::new(params);
+    for _ in 0..n {
+        let a = r.boxp()?;
+        let b = r.boxp()?;
+        let names = [r.str()?, r.str()?];
+        let configs = r.configs(dof)?;
+        db.insert(SparkPair { a, b, names }, configs);
     }
+    r.finish()?;
+    Ok(db)
+}
 
-    /// Loads a database saved by [`FlameDb::save`].
-    pub fn load(path: impl AsRef<Path>) -> Result<FlameDb, DbError> {
-        let file = Loaded::open(path.as_ref(), KIND_FLAME)?;
-        let mut r = file.reader();
-        let params = r.params()?;
-        let resolution = r.f64()?;
-        let dof = r.u32()? as usize;
-        let n = r.u64()? as usize;
-        let mut db = FlameDb::new(params, resolution);
-        for _ in 0..n {
-            let key = [r.i32()?, r.i32()?, r.i32()?];
-            let mask = r.u64()?;
-            let configs = r.configs(dof)?;
-            db.insert(OctoboxPrimitive { key, mask }, configs);
+/// Saves a FLAME database atomically to `path`.
+pub(crate) fn save_flame(db: &FlameDb, path: &Path) -> Result<(), DbError> {
+    let mut w = Writer::default();
+    w.params(db.params());
+    w.f64(db.resolution());
+    let dof = dof_of(db.samplers().iter());
+    w.u32(dof as u32);
+    w.u64(db.len() as u64);
+    for (k, s) in db.entries() {
+        for c in k.key {
+            w.i32(c);
         }
-        if r.pos != file.payload.len() {
-            return Err(DbError::Corrupt {
-                path: file.path.clone(),
-                what: "trailing bytes".into(),
-            });
-        }
-        Ok(db)
+        w.u64(k.mask);
+        w.sampler(dof, s);
     }
+    save(path, KIND_FLAME, &w.0)
+}
+
+/// Loads a database saved by [`save_flame`].
+pub(crate) fn load_flame(path: &Path) -> Result<FlameDb, DbError> {
+    let file = Loaded::open(path, KIND_FLAME)?;
+    let mut r = file.reader();
+    let params = r.params()?;
+    let resolution = r.f64()?;
+    let dof = r.u32()? as usize;
+    let n = r.u64()? as usize;
+    let mut db = FlameDb::new(params, resolution);
+    for _ in 0..n {
+        let key = [r.i32()?, r.i32()?, r.i32()?];
+        let mask = r.u64()?;
+        let configs = r.configs(dof)?;
+        db.insert(Octobox { key, mask }, configs);
+    }
+    r.finish()?;
+    Ok(db)
 }

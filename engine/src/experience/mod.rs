@@ -1,14 +1,17 @@
 //! Experience: SPARK and FLAME (Chamzas et al., ICRA 2021) — sampling distributions learned from
 //! past solutions, keyed by local workspace primitives.
 //!
-//! - [`primitive`]: local primitives (SPARK box pairs, FLAME octoboxes) and their distances;
-//! - [`criticality`]: which path configurations belong to a primitive;
-//! - [`database`]: primitive → local sampler, with radius retrieval (SPARK, exact metric tree)
-//!   and mask-match retrieval (FLAME); `spark_index` holds SPARK's index and [`vptree`] its
-//!   metric tree, `flame_index` FLAME's; [`file`] the on-disk form;
-//! - [`sampler`]: the global sampler (λ-mix of uniform and the retrieved Gaussian mixtures) that
-//!   plugs into the planner;
-//! - [`train`]: learning from solved paths.
+//! [`Experience`] is the one type the daemon, `ember train` and the benchmarks use: it owns both
+//! databases and their folder, hands out a sampler per method and scene, and learns from solved
+//! paths. Inside:
+//! - [`database`]: the [`Database`] contract (primitive → [`LocalSampler`], exact retrieval
+//!   with a linear-scan oracle, one file) and the storage both databases share;
+//! - [`spark`] and [`flame`]: each method's primitive, criticality test, retrieval index and
+//!   database;
+//! - [`sampler`]: local samplers, retrievals and the global sampler (λ-mix of uniform and the
+//!   retrieved Gaussian mixtures) that plugs into the planner;
+//! - [`file`]: the on-disk form; [`learn`]: learning from solved paths; [`store`]: the
+//!   [`Experience`] type.
 //!
 //! Where we differ from the authors' code (on purpose):
 //! - the orientation term of the SE(3) distance is the rotation angle `2·acos(|q₁·q₂|)` instead of
@@ -24,19 +27,21 @@
 //! - the global sampler picks a retrieved local sampler uniformly, then one of its components
 //!   (the paper's mixture of mixtures), where the authors' code flattens all unique means.
 
-pub mod criticality;
 pub mod database;
 pub mod file;
-mod flame_index;
-pub mod primitive;
+pub mod flame;
+pub mod learn;
 pub mod sampler;
-mod spark_index;
-pub mod train;
-pub mod vptree;
+pub mod spark;
+pub mod store;
 
-pub use database::{FlameDb, SparkDb};
-pub use primitive::{BoxPrimitive, OctoboxPrimitive, SparkPair};
-pub use sampler::GlobalSampler;
+pub use database::Database;
+pub use file::DbError;
+pub use flame::{FlameDb, Octobox};
+pub use learn::Learned;
+pub use sampler::{GlobalSampler, LocalSampler, Retrieval};
+pub use spark::{BoxPrimitive, SparkDb, SparkPair};
+pub use store::{Experience, Method, SetAside};
 
 /// Hyperparameters (paper, Table I).
 #[derive(Debug, Clone, PartialEq)]

@@ -1,10 +1,11 @@
-//! SPARK and FLAME: metric, metric tree, database files, sampler, learning.
+//! SPARK and FLAME: metric, retrieval indexes, the database contract (run against both
+//! databases), files, samplers, learning, the experience folder.
 
-use ember_engine::experience::database::Retrieval;
-use ember_engine::experience::file::DbError;
-use ember_engine::experience::primitive::{BoxPrimitive, OctoboxPrimitive, SparkPair};
-use ember_engine::experience::train::learn;
-use ember_engine::experience::{ExperienceParams, FlameDb, GlobalSampler, SparkDb};
+use ember_engine::experience::learn::path_states;
+use ember_engine::experience::{
+    BoxPrimitive, Database, DbError, Experience, ExperienceParams, FlameDb, GlobalSampler,
+    LocalSampler, Method, Octobox, Retrieval, SparkDb, SparkPair,
+};
 use ember_engine::planning::{PlannerRng, Sampler};
 use ember_engine::robot::Robot;
 use ember_engine::scene::pose_from_xyz_xyzw;
@@ -130,12 +131,12 @@ fn flame_matches_equal_masks_within_the_radius_as_the_linear_scan_does() {
     for _ in 0..3000 {
         let key = [0, 1, 2].map(|_| rng.random_range(-12..12));
         let mask = masks[rng.random_range(0..masks.len())];
-        sut.insert(OctoboxPrimitive { key, mask }, configs(&mut rng, 1));
+        sut.insert(Octobox { key, mask }, configs(&mut rng, 1));
     }
     let mut found = 0;
     for _ in 0..300 {
         let key = [0, 1, 2].map(|_| rng.random_range(-14..14));
-        let q = OctoboxPrimitive {
+        let q = Octobox {
             key,
             mask: masks[rng.random_range(0..masks.len())],
         };
@@ -147,12 +148,12 @@ fn flame_matches_equal_masks_within_the_radius_as_the_linear_scan_does() {
 
     // The authors' match: same mask and centres within 0.2 m, not only the same octobox.
     let mut one = FlameDb::new(ExperienceParams::default(), 0.02);
-    let stored = OctoboxPrimitive {
+    let stored = Octobox {
         key: [5, 5, 5],
         mask: 0xff,
     };
     one.insert(stored, configs(&mut rng, 1));
-    let at = |key: [i32; 3], mask: u64| one.retrieve(&[OctoboxPrimitive { key, mask }]).entries;
+    let at = |key: [i32; 3], mask: u64| one.retrieve(&[Octobox { key, mask }]).entries;
     assert_eq!(at([5, 5, 5], 0xff), 1);
     assert_eq!(at([7, 5, 5], 0xff), 1, "0.16 m away");
     assert_eq!(at([7, 6, 5], 0xff), 1, "0.179 m away");
@@ -181,10 +182,10 @@ fn flame_matches_equal_the_linear_scan_at_every_reach() {
         for _ in 0..2000 {
             let k = key(&mut rng, 10);
             let mask = masks[rng.random_range(0..masks.len())];
-            sut.insert(OctoboxPrimitive { key: k, mask }, configs(&mut rng, 1));
+            sut.insert(Octobox { key: k, mask }, configs(&mut rng, 1));
         }
         let queries: Vec<_> = (0..200)
-            .map(|_| OctoboxPrimitive {
+            .map(|_| Octobox {
                 key: key(&mut rng, 12),
                 mask: masks[rng.random_range(0..masks.len())],
             })
@@ -217,44 +218,219 @@ fn equal_primitives_share_an_entry() {
     assert_eq!(sut.configurations(), 5);
 }
 
-#[test]
-fn databases_survive_save_and_load() {
-    let mut rng = PlannerRng::seed_from_u64(4);
-    let mut spark = SparkDb::new(ExperienceParams::default());
-    for _ in 0..300 {
-        let k = random_pair(&mut rng);
-        spark.insert(k, configs(&mut rng, 3));
-    }
-    let path = temp("spark.emberdb");
-    spark.save(&path).unwrap();
-    let back = SparkDb::load(&path).unwrap();
-    assert_eq!(back.len(), spark.len());
-    for ((ka, va), (kb, vb)) in spark.entries().zip(back.entries()) {
-        assert_eq!(va, vb);
-        assert_eq!(ka.names, kb.names);
-        assert!(ka.distance(kb, spark.params()) < 1e-12);
-    }
-    let q = random_pair(&mut rng);
-    assert_eq!(back.within(&q), spark.within(&q));
+/// What the conformance tests need of a database kind: an empty database and random
+/// primitives that sometimes repeat, so entries merge.
+trait Kind: Database + std::fmt::Debug {
+    fn empty() -> Self;
+    fn primitive(rng: &mut PlannerRng) -> Self::Primitive;
+    /// A primitive that matches none of [`Kind::primitive`]'s.
+    fn unmatched() -> Self::Primitive;
+    /// Equal primitives (SPARK pairs carry poses: compared by distance).
+    fn same(a: &Self::Primitive, b: &Self::Primitive) -> bool;
+}
 
-    let mut flame = FlameDb::new(ExperienceParams::default(), 0.02);
-    for i in 0..100 {
-        flame.insert(
-            OctoboxPrimitive {
-                key: [i, -i, 3],
-                mask: rng.random(),
-            },
-            configs(&mut rng, 2),
-        );
+impl Kind for SparkDb {
+    fn empty() -> Self {
+        // A radius small against the spread: queries return some entries, not all.
+        SparkDb::new(ExperienceParams {
+            d_radius: 1.0,
+            ..Default::default()
+        })
     }
-    let fpath = temp("flame.emberdb");
+    fn primitive(rng: &mut PlannerRng) -> SparkPair {
+        random_pair(rng)
+    }
+    fn unmatched() -> SparkPair {
+        let b = BoxPrimitive {
+            pose: Pose::translation(100.0, 0.0, 0.0),
+            size: [0.1; 3],
+        };
+        SparkPair {
+            a: b,
+            b,
+            names: ["far".into(), "away".into()],
+        }
+    }
+    fn same(a: &SparkPair, b: &SparkPair) -> bool {
+        a.distance(b, &ExperienceParams::default()) < 1e-12
+    }
+}
+
+impl Kind for FlameDb {
+    fn empty() -> Self {
+        FlameDb::new(ExperienceParams::default(), 0.02)
+    }
+    fn primitive(rng: &mut PlannerRng) -> Octobox {
+        let masks = [0xffff_u64, 0xff00_ff00, u64::MAX];
+        Octobox {
+            key: [0, 1, 2].map(|_| rng.random_range(-12..12)),
+            mask: masks[rng.random_range(0..masks.len())],
+        }
+    }
+    fn unmatched() -> Octobox {
+        Octobox {
+            key: [0; 3],
+            mask: 1,
+        }
+    }
+    fn same(a: &Octobox, b: &Octobox) -> bool {
+        a == b
+    }
+}
+
+/// A database of `n` random entries (some primitives repeated) and its inserted primitives.
+fn filled<D: Kind>(seed: u64, n: usize) -> (D, Vec<D::Primitive>) {
+    let mut rng = PlannerRng::seed_from_u64(seed);
+    let mut db = D::empty();
+    let mut keys: Vec<D::Primitive> = Vec::new();
+    for i in 0..n {
+        let k = if i % 10 == 9 {
+            keys[rng.random_range(0..keys.len())].clone()
+        } else {
+            D::primitive(&mut rng)
+        };
+        let c = rng.random_range(1..4);
+        db.insert(k.clone(), configs(&mut rng, c));
+        keys.push(k);
+    }
+    (db, keys)
+}
+
+/// The index retrieves exactly what the linear scan retrieves (samplers, order, counts), on
+/// stored primitives and on fresh ones, alone and in scenes.
+fn conformance_retrieval<D: Kind>() {
+    let (db, keys) = filled::<D>(21, 1500);
+    let mut rng = PlannerRng::seed_from_u64(22);
+    assert!(db.len() < keys.len(), "repeated primitives share entries");
+    let stored: usize = db.samplers().iter().map(LocalSampler::len).sum();
+    assert_eq!(db.configurations(), stored);
+    let mut some = 0;
+    for t in 0..200 {
+        let scene: Vec<D::Primitive> = (0..1 + t % 6)
+            .map(|i| {
+                if i == 0 && t % 2 == 0 {
+                    keys[rng.random_range(0..keys.len())].clone()
+                } else {
+                    D::primitive(&mut rng)
+                }
+            })
+            .collect();
+        let (index, linear) = (db.retrieve(&scene), db.retrieve_linear(&scene));
+        assert_eq!(index, linear, "{} query {t}", D::NAME);
+        assert_eq!(index.query_primitives, scene.len());
+        some += !index.samplers.is_empty() as usize;
+        assert!(index.samplers.len() < db.len(), "{}: selective", D::NAME);
+    }
+    assert!(some > 50, "{}: {some} queries found something", D::NAME);
+    let nothing = [D::unmatched()];
+    assert_eq!(
+        db.retrieve(&nothing),
+        Retrieval {
+            query_primitives: 1,
+            ..Default::default()
+        }
+    );
+    assert_eq!(db.retrieve_linear(&nothing), db.retrieve(&nothing));
+    // A stored primitive retrieves its own sampler.
+    let k = &keys[0];
+    let own = &db.samplers()[db.keys().iter().position(|x| D::same(x, k)).unwrap()];
+    assert!(db
+        .retrieve(std::slice::from_ref(k))
+        .samplers
+        .iter()
+        .any(|s| **s == *own));
+}
+
+/// Save and load give back the same database: entries, samplers, parameters, retrievals.
+fn conformance_file_loopback<D: Kind>() {
+    let (db, _) = filled::<D>(23, 300);
+    let path = temp(&format!("loop-{}", D::FILE_NAME));
+    db.save(&path).unwrap();
+    let back = D::load(&path).unwrap();
+    std::fs::remove_file(&path).ok();
+    assert_eq!(
+        (back.len(), back.configurations()),
+        (db.len(), db.configurations())
+    );
+    assert_eq!(back.params(), db.params());
+    assert_eq!(back.samplers(), db.samplers());
+    assert!(back
+        .keys()
+        .iter()
+        .zip(db.keys())
+        .all(|(a, b)| D::same(a, b)));
+    let mut rng = PlannerRng::seed_from_u64(24);
+    for _ in 0..50 {
+        let q = [D::primitive(&mut rng), D::primitive(&mut rng)];
+        assert_eq!(back.retrieve(&q), db.retrieve(&q));
+    }
+    // Merging into an empty database gives the same entries.
+    let mut merged = D::empty();
+    merged.merge(&db);
+    assert_eq!(merged.samplers(), db.samplers());
+}
+
+/// Bad files are refused with an error that names what is wrong.
+fn conformance_bad_files<D: Kind, Other: Kind>() {
+    let (db, _) = filled::<D>(25, 100);
+    let path = temp(&format!("bad-{}", D::FILE_NAME));
+    db.save(&path).unwrap();
+    let bytes = std::fs::read(&path).unwrap();
+    let load = |b: &[u8]| {
+        std::fs::write(&path, b).unwrap();
+        D::load(&path).unwrap_err()
+    };
+    let e = load(&bytes[..bytes.len() / 2]);
+    assert!(matches!(e, DbError::Truncated(_)), "{e}");
+    let e = load(&bytes[..10]);
+    assert!(matches!(e, DbError::Truncated(_)), "{e}");
+    let mut corrupt = bytes.clone();
+    let mid = corrupt.len() / 2;
+    corrupt[mid] ^= 0xff;
+    let e = load(&corrupt);
+    assert!(
+        matches!(e, DbError::Checksum(_)) && e.to_string().contains("corrupt"),
+        "{e}"
+    );
+    let e = load(b"PK\x03\x04 a zip file");
+    assert!(matches!(e, DbError::NotADatabase(_)), "{e}");
+    let mut future = bytes.clone();
+    future[8] = 99;
+    let e = load(&future);
+    assert!(matches!(e, DbError::Version { found: 99, .. }), "{e}");
+    // A database of the other kind.
+    let (other, _) = filled::<Other>(26, 10);
+    other.save(&path).unwrap();
+    let e = D::load(&path).unwrap_err();
+    assert!(
+        matches!(e, DbError::WrongKind { .. }) && e.to_string().contains(D::NAME),
+        "{e}"
+    );
+    let e = D::load(&temp("missing.emberdb")).unwrap_err();
+    assert!(matches!(e, DbError::Io { .. }), "{e}");
+    std::fs::remove_file(&path).ok();
+}
+
+#[test]
+fn spark_database_conforms() {
+    conformance_retrieval::<SparkDb>();
+    conformance_file_loopback::<SparkDb>();
+    conformance_bad_files::<SparkDb, FlameDb>();
+}
+
+#[test]
+fn flame_database_conforms() {
+    conformance_retrieval::<FlameDb>();
+    conformance_file_loopback::<FlameDb>();
+    conformance_bad_files::<FlameDb, SparkDb>();
+}
+
+#[test]
+fn version_1_files_still_load() {
+    // A version 1 file (parameters without `flame_radius`) loads, with its default.
+    let (flame, _) = filled::<FlameDb>(27, 100);
+    let fpath = temp("v1-flame.emberdb");
     flame.save(&fpath).unwrap();
-    let fback = FlameDb::load(&fpath).unwrap();
-    assert_eq!(fback.len(), 100);
-    assert_eq!(fback.configurations(), 200);
-    assert_eq!(fback.params(), flame.params());
-    assert!(fback.entries().eq(flame.entries()));
-    // A version 1 file (parameters without `flame_radius`) still loads, with its default.
     let v2 = std::fs::read(&fpath).unwrap();
     let payload = &v2[21..v2.len() - 4];
     let mut v1_payload = payload[..6 * 8].to_vec();
@@ -267,49 +443,52 @@ fn databases_survive_save_and_load() {
     v1.extend_from_slice(&crc32fast::hash(&v1_payload).to_le_bytes());
     std::fs::write(&fpath, &v1).unwrap();
     let old = FlameDb::load(&fpath).unwrap();
+    std::fs::remove_file(&fpath).ok();
     assert_eq!(old.params(), flame.params());
     assert!(old.entries().eq(flame.entries()));
-    // Loading a FLAME file as SPARK names the mismatch.
-    assert!(matches!(
-        SparkDb::load(&fpath),
-        Err(DbError::WrongKind { .. })
-    ));
-    std::fs::remove_file(&fpath).ok();
+}
 
-    // Truncated, corrupted and foreign files are rejected with a clear error.
-    let bytes = std::fs::read(&path).unwrap();
-    std::fs::write(&path, &bytes[..bytes.len() / 2]).unwrap();
-    let e = SparkDb::load(&path).unwrap_err();
-    assert!(matches!(e, DbError::Truncated(_)), "{e}");
-    let mut corrupt = bytes.clone();
-    let mid = corrupt.len() / 2;
-    corrupt[mid] ^= 0xff;
-    std::fs::write(&path, &corrupt).unwrap();
-    let e = SparkDb::load(&path).unwrap_err();
-    assert!(
-        matches!(e, DbError::Checksum(_)) && e.to_string().contains("corrupt"),
-        "{e}"
-    );
-    std::fs::write(&path, b"PK\x03\x04 a zip file").unwrap();
-    assert!(matches!(
-        SparkDb::load(&path),
-        Err(DbError::NotADatabase(_))
-    ));
-    let mut future = bytes;
-    future[8] = 99;
-    std::fs::write(&path, &future).unwrap();
-    assert!(matches!(
-        SparkDb::load(&path),
-        Err(DbError::Version { found: 99, .. })
-    ));
-    std::fs::remove_file(&path).ok();
+#[test]
+fn an_experience_folder_loads_saves_and_sets_bad_files_aside() {
+    let dir = temp("experience-dir");
+    std::fs::remove_dir_all(&dir).ok();
+    let params = ExperienceParams::default();
+    // Nothing there: empty databases, nothing set aside.
+    let (mut sut, aside) = Experience::load_dir(&dir, &params, 0.02).unwrap();
+    assert!(sut.spark.is_empty() && sut.flame.is_empty() && aside.is_empty());
+    assert_eq!(sut.default_method(), Method::Uniform);
+    let (spark, _) = filled::<SparkDb>(28, 50);
+    let (flame, _) = filled::<FlameDb>(29, 50);
+    sut.spark.merge(&spark);
+    sut.flame.merge(&flame);
+    sut.save_dir(&dir).unwrap();
+    assert!(!sut.is_dirty());
+    let (back, aside) = Experience::load_dir(&dir, &params, 0.02).unwrap();
+    assert!(aside.is_empty());
+    assert_eq!(back.spark.samplers(), spark.samplers());
+    assert_eq!(back.flame.samplers(), flame.samplers());
+    assert_eq!(back.default_method(), Method::Spark);
+    // A corrupt SPARK file is moved aside (kept, not overwritten); FLAME still loads.
+    let [spark_file, _] = Experience::files(&dir);
+    let mut bytes = std::fs::read(&spark_file).unwrap();
+    let mid = bytes.len() / 2;
+    bytes[mid] ^= 1;
+    std::fs::write(&spark_file, &bytes).unwrap();
+    let (again, aside) = Experience::load_dir(&dir, &params, 0.02).unwrap();
+    assert!(again.spark.is_empty() && again.flame.len() == flame.len());
+    assert_eq!(aside.len(), 1);
+    assert!(matches!(aside[0].error, DbError::Checksum(_)));
+    assert_eq!(std::fs::read(&aside[0].moved_to).unwrap(), bytes);
+    assert!(!spark_file.exists());
+    std::fs::remove_dir_all(&dir).ok();
 }
 
 #[test]
 fn sampler_matches_its_components() {
     let robot = Robot::builtin("fetch").unwrap();
     let mean = vec![0.2, 0.3, 0.1, 0.0, 0.5, 0.0, -0.4, 0.0];
-    let retrieval = Retrieval::from_samplers(vec![vec![mean.clone()]]);
+    let retrieval =
+        Retrieval::from_samplers(vec![LocalSampler::from_means(std::slice::from_ref(&mean))]);
     let mut sut = GlobalSampler::new(retrieval, 0.1, 0.0);
     let mut rng = PlannerRng::seed_from_u64(5);
     let n = 20000;
@@ -342,21 +521,32 @@ fn sampler_falls_back_to_uniform_when_nothing_is_retrieved() {
     assert_eq!(sut.local_samplers(), 0);
     let mut rng = PlannerRng::seed_from_u64(6);
     let mut q = [0.0; 8];
-    let mut sum = 0.0;
+    // Every bounded joint's range, in ten bins: each bin gets its share (10% ± 2%).
     let n = 20000;
+    let mut bins = [[0usize; 10]; 8];
     for _ in 0..n {
         sut.sample(&robot, &mut rng, &mut q);
-        sum += q[1];
+        for (j, v) in robot.variables().iter().enumerate() {
+            let (lo, hi) = (v.lower, v.upper);
+            assert!((lo..=hi).contains(&q[j]), "joint {j}: {} outside", q[j]);
+            let b = (((q[j] - lo) / (hi - lo)) * 10.0) as usize;
+            bins[j][b.min(9)] += 1;
+        }
     }
-    // Uniform over shoulder_pan's ±1.6056 has mean 0 and covers the range.
-    assert!((sum / n as f64).abs() < 0.03);
+    for (j, b) in bins.iter().enumerate() {
+        for (k, &c) in b.iter().enumerate() {
+            let share = c as f64 / n as f64;
+            assert!((share - 0.1).abs() < 0.02, "joint {j} bin {k}: {share}");
+        }
+    }
 }
 
 #[test]
 fn lambda_mixes_uniform_and_biased_samples() {
     let robot = Robot::builtin("fetch").unwrap();
     let mean = vec![0.2, 0.3, 0.1, 0.0, 0.5, 0.0, -0.4, 0.0];
-    let retrieval = Retrieval::from_samplers(vec![vec![mean.clone()]]);
+    let retrieval =
+        Retrieval::from_samplers(vec![LocalSampler::from_means(std::slice::from_ref(&mean))]);
     let mut sut = GlobalSampler::new(retrieval, 0.01, 0.5);
     let mut rng = PlannerRng::seed_from_u64(7);
     let mut q = [0.0; 8];
@@ -399,17 +589,9 @@ fn learning_from_a_path_fills_both_databases() {
         .flat_map(|i| (0..40).map(move |j| [0.7 + 0.02 * i as f32, -0.4 + 0.02 * j as f32, 0.72]))
         .collect();
     map.insert_cloud(&top, &Pose::identity(), None);
-    let mut spark = SparkDb::new(ExperienceParams::default());
-    let mut flame = FlameDb::new(ExperienceParams::default(), 0.02);
-    let learned = learn(
-        &robot,
-        &scene,
-        Some(&map),
-        &path,
-        Some(0.1),
-        &mut spark,
-        Some(&mut flame),
-    );
+    let mut sut = Experience::new(ExperienceParams::default(), 0.02);
+    let learned = sut.learn(&robot, &scene, Some(&map), &path, Some(0.1));
+    let (spark, flame) = (&sut.spark, &sut.flame);
     assert!(learned.spark_primitives >= 2, "{learned:?}");
     assert!(
         learned.spark_entries >= 1 && !spark.is_empty(),
@@ -420,16 +602,31 @@ fn learning_from_a_path_fills_both_databases() {
         "{learned:?}"
     );
     // Everything stored is a configuration of the interpolated path, which ends at the IK goal.
-    let states = ember_engine::experience::criticality::path_states(&robot, &path, Some(0.1));
+    let states = path_states(&robot, &path, Some(0.1));
     for (_, v) in spark.entries() {
-        assert!(v.iter().all(|q| states.contains(q)));
+        assert!(v.means().all(|q| states.iter().any(|s| s == q)));
     }
     // The same scene retrieves what was learned.
-    let r = spark.retrieve(&ember_engine::experience::primitive::spark_pairs(
-        &scene,
-        spark.params(),
-    ));
+    let pairs = ember_engine::experience::spark::spark_pairs(&scene, spark.params());
+    let boxes = ember_engine::experience::flame::octoboxes(&map);
+    let r = spark.retrieve(&pairs);
     assert_eq!(r.samplers.len(), spark.len());
-    let r = flame.retrieve(&ember_engine::experience::primitive::octoboxes(&map));
+    let r = flame.retrieve(&boxes);
     assert_eq!(r.samplers.len(), flame.len());
+    // The experience hands out samplers over what each method retrieves.
+    assert_eq!(
+        sut.sampler_for(Method::Spark, &pairs, &boxes)
+            .local_samplers(),
+        spark.len()
+    );
+    assert_eq!(
+        sut.sampler_for(Method::Flame, &pairs, &boxes)
+            .local_samplers(),
+        flame.len()
+    );
+    assert_eq!(
+        sut.sampler_for(Method::Uniform, &pairs, &boxes)
+            .local_samplers(),
+        0
+    );
 }

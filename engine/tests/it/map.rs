@@ -1,8 +1,9 @@
 //! The occupancy map: insertion semantics, queries, octoboxes, `.bt` files, robot collision.
 
 use ember_engine::collision::SphereChecker;
+use ember_engine::robot::spheres::PlacedSpheres;
 use ember_engine::robot::Robot;
-use ember_engine::world::map::{MapParams, Occupancy, OccupancyMap, RobotFilter};
+use ember_engine::world::map::{MapParams, Occupancy, OccupancyMap};
 use ember_engine::world::Environment;
 use ember_engine::Pose;
 use std::sync::Arc;
@@ -211,7 +212,7 @@ fn bad_bt_files_are_rejected() {
 fn robot_filter_removes_points_on_the_robot() {
     let robot = Robot::builtin("fetch").unwrap();
     let q = robot.named_state("tuck").unwrap();
-    let sut = RobotFilter::new(&robot, q, 0.02);
+    let sut = PlacedSpheres::at(&robot, q, 0.02);
     // A point inside the gripper: the centre of its first sphere.
     let li = robot.link_index("gripper_link").unwrap();
     let (c, _) = robot.spheres().link_spheres(li).next().unwrap();

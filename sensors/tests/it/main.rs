@@ -1,8 +1,9 @@
 //! Simulated depth camera tests, and the map built from its frames.
 
 use ember_engine::collision::Shape;
+use ember_engine::robot::spheres::PlacedSpheres;
 use ember_engine::robot::Robot;
-use ember_engine::world::map::{MapParams, Occupancy, OccupancyMap, RobotFilter};
+use ember_engine::world::map::{MapParams, Occupancy, OccupancyMap};
 use ember_engine::world::{Environment, Object};
 use ember_engine::Pose;
 use ember_sensors::{look_at, CameraModel, DepthCamera, NoiseModel};
@@ -88,7 +89,7 @@ fn self_filter_keeps_the_robot_out_of_the_map() {
     let mut camera = DepthCamera::new(CameraModel::default(), NoiseModel::default(), 4);
     let head = [0.15, 0.0, 1.45];
     let frame = camera.render(&env, &look_at(head, [1.0, 0.0, 0.5]));
-    let filter = RobotFilter::new(&robot, &q, 0.03);
+    let filter = PlacedSpheres::at(&robot, &q, 0.03);
     let mut unfiltered = OccupancyMap::new(MapParams::default());
     unfiltered.insert_cloud(&frame.points, &frame.sensor_pose, None);
     let mut sut = OccupancyMap::new(MapParams::default());

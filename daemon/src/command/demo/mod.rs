@@ -10,12 +10,12 @@ mod rig;
 use crate::cli::DemoArgs;
 use ember_engine::planning::PlannerRng;
 use ember_engine::problems;
+use ember_sdk::launch::launch;
 use ember_sdk::wire::{Method, FLAG_NO_LEARN};
 use ember_sdk::{Client, PlanCall, Status};
 use indicatif::{ProgressBar, ProgressStyle};
 use rand::{Rng, SeedableRng};
 use rig::{Rig, Truth};
-use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitCode, Stdio};
 use std::time::{Duration, Instant};
@@ -75,23 +75,12 @@ impl DemoDaemon {
         } else {
             cmd.arg("--record-dir").arg(&args.record);
         }
-        let mut child = cmd
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()?;
-        let mut line = String::new();
-        BufReader::new(child.stdout.as_mut().expect("piped")).read_line(&mut line)?;
-        if !line.starts_with("emberd ready") {
-            let _ = child.kill();
-            let _ = child.wait();
-            anyhow::bail!("the daemon did not start (see its message above)");
-        }
-        let recording = line
-            .trim()
-            .rsplit_once("recording ")
-            .map_or("off", |(_, r)| r)
-            .to_string();
-        println!("{}", line.trim());
+        let (child, ready) = launch(cmd.stderr(Stdio::inherit()))
+            .map_err(|e| anyhow::anyhow!("{e} (see its message above)"))?;
+        println!("{ready}");
+        let recording = ready
+            .recording
+            .map_or("off".to_string(), |p| p.display().to_string());
         Ok(DemoDaemon { child, recording })
     }
 
@@ -127,13 +116,7 @@ struct Tally {
 
 impl Tally {
     fn median(v: &[f64]) -> f64 {
-        let mut v = v.to_vec();
-        v.sort_by(f64::total_cmp);
-        match v.len() {
-            0 => f64::NAN,
-            n if n % 2 == 1 => v[n / 2],
-            n => (v[n / 2 - 1] + v[n / 2]) / 2.0,
-        }
+        ember_sdk::stats::median(&mut v.to_vec())
     }
 
     fn mean(v: &[f64]) -> f64 {
@@ -187,8 +170,8 @@ pub fn run(args: DemoArgs) -> anyhow::Result<ExitCode> {
     // A fresh database unless asked to continue: the learned methods start from nothing.
     std::fs::create_dir_all(&args.db)?;
     if !args.keep_db {
-        for f in ["spark.emberdb", "flame.emberdb"] {
-            let _ = std::fs::remove_file(args.db.join(f));
+        for f in ember_engine::experience::Experience::files(&args.db) {
+            let _ = std::fs::remove_file(f);
         }
     }
     let work = args

@@ -2,7 +2,7 @@
 //! capture reporting every object's pose, and the robot's joint encoders — all streamed to the
 //! daemon over iceoryx2 through the SDK, as a robot's drivers would.
 
-use crate::service::ingest::update_of;
+use crate::service::objects::update_of;
 use ember_engine::scene::{pose_to_xyz_xyzw, Scene};
 use ember_engine::Pose;
 use ember_sdk::wire::{self, ShapeKind};

@@ -5,10 +5,14 @@
 //! - [`fit`]: the fitter (bounded protrusion, greedy cover of the surface);
 //! - [`cache`]: fitted spheres cached by content hash, in memory and on disk.
 //!
-//! [`measure`] reports a model's protrusion and coverage against any geometry.
+//! [`measure`] reports a model's protrusion and coverage against any geometry; [`placed`] puts
+//! a model at one configuration.
 
 pub mod cache;
 pub mod fit;
+pub mod placed;
+
+pub use placed::PlacedSpheres;
 
 use super::{Link, LinkShape};
 use cache::{Source, SphereCache};

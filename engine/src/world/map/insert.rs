@@ -12,7 +12,8 @@
 //! Marks live in per-block bit masks and block indices in a dense per-cloud table, so the inner
 //! loop does no hashing.
 
-use super::{bits, BlockKey, Leaves, OccupancyMap, RobotFilter, VoxelKey};
+use super::{bits, BlockKey, Leaves, OccupancyMap, VoxelKey};
+use crate::robot::spheres::PlacedSpheres;
 use crate::Pose;
 
 /// Consecutive already-passed cells after which a repeated ray stops (3: 99.1% voxel agreement
@@ -228,7 +229,7 @@ impl OccupancyMap {
         &mut self,
         points: &[[f32; 3]],
         sensor_pose: &Pose,
-        filter: Option<&RobotFilter>,
+        filter: Option<&PlacedSpheres>,
     ) -> InsertReport {
         let mut report = InsertReport {
             points: points.len(),

@@ -9,16 +9,18 @@
 //! - Blocks exist only where something was observed; blocks whose 64 leaves are all known and
 //!   equal (saturated free space, typically) are compacted to one value.
 //!
-//! Files: `insert.rs` (ray casting), `self_filter.rs` (removing the robot's own points),
-//! `bt_file.rs` (OctoMap's binary `.bt` format).
+//! Files: `insert.rs` (ray casting; the robot's own points are removed with its
+//! [`PlacedSpheres`](crate::robot::spheres::PlacedSpheres)), `bt_file.rs` (OctoMap's binary
+//! `.bt` format).
+//!
+//! A block is stored as `Block` (leaves and per-cloud scratch); what the map shows of it is an
+//! [`Octobox`] (key and occupancy mask), which is also FLAME's local primitive.
 
 mod bt_file;
 mod insert;
-mod self_filter;
 
 pub use bt_file::BtError;
 pub use insert::InsertReport;
-pub use self_filter::RobotFilter;
 
 use rustc_hash::FxHashMap;
 

@@ -8,7 +8,7 @@
 
 use super::primitive::{raw_distance, BoxPrimitive, RawBox, SparkPair};
 use super::vptree::VpTree;
-use super::{prefetch, ExperienceParams};
+use crate::experience::{prefetch, ExperienceParams};
 use rustc_hash::FxHashMap;
 
 /// The index over a database's entries (numbered by the database).

@@ -1,14 +1,11 @@
-//! Local primitives and their distances.
-//!
-//! - SPARK: a pair of boxes (pose + size each; non-box objects enter as their bounding boxes)
-//!   whose objects are closer than `d_pairs`.
-//! - FLAME: an octobox of the occupancy map (4×4×4 leaves, block key + 64-bit mask).
+//! SPARK's local primitive: a pair of boxes (pose + size each; non-box objects enter as their
+//! bounding boxes) whose objects are closer than `d_pairs`, and the pair metric.
 
-use super::ExperienceParams;
 use crate::collision::parry::shape_distance;
 use crate::collision::Shape;
+use crate::experience::ExperienceParams;
 use crate::scene::Scene;
-use crate::world::map::{BlockKey, OccupancyMap};
+use crate::world::Object;
 use crate::Pose;
 
 /// A box: pose in the base frame and full size (metres).
@@ -114,7 +111,7 @@ impl SparkPair {
     /// Pair distance: the smaller of the two pairings' summed box distances (a metric).
     ///
     /// ```
-    /// use ember_engine::experience::{primitive::{BoxPrimitive, SparkPair}, ExperienceParams};
+    /// use ember_engine::experience::{BoxPrimitive, ExperienceParams, SparkPair};
     /// use ember_engine::Pose;
     /// let b = |x: f64| BoxPrimitive { pose: Pose::translation(x, 0.0, 0.0), size: [0.1; 3] };
     /// let p = SparkPair { a: b(0.0), b: b(1.0), names: ["a".into(), "b".into()] };
@@ -157,89 +154,58 @@ impl SparkPair {
     }
 }
 
+/// An object's bounding box, as a primitive and as a shape.
+fn box_of(o: &Object) -> (BoxPrimitive, Shape) {
+    let b = BoxPrimitive::of(&o.shape, &o.pose);
+    (b, Shape::cuboid(b.size))
+}
+
+/// The pair of `a` and `b` when their boxes are closer than `d_pairs`.
+fn pair_if_close(
+    (oa, (ba, sa)): (&Object, &(BoxPrimitive, Shape)),
+    (ob, (bb, sb)): (&Object, &(BoxPrimitive, Shape)),
+    params: &ExperienceParams,
+) -> Option<SparkPair> {
+    // Cheap reject before GJK.
+    let reach = sa.bounding_radius() + sb.bounding_radius() + params.d_pairs;
+    if (ba.pose.translation.vector - bb.pose.translation.vector).norm() > reach {
+        return None;
+    }
+    (shape_distance(sa, &ba.pose, sb, &bb.pose) < params.d_pairs).then(|| SparkPair {
+        a: *ba,
+        b: *bb,
+        names: [oa.name.clone(), ob.name.clone()],
+    })
+}
+
 /// The SPARK pairs that object `index` of `scene` forms with every other object: what an
 /// update of that one object changes.
 pub fn spark_pairs_of(scene: &Scene, index: usize, params: &ExperienceParams) -> Vec<SparkPair> {
     let Some(o) = scene.objects.get(index) else {
         return Vec::new();
     };
-    let bi = BoxPrimitive::of(&o.shape, &o.pose);
-    let si = Shape::cuboid(bi.size);
-    let mut out = Vec::new();
-    for (j, other) in scene.objects.iter().enumerate() {
-        if j == index {
-            continue;
-        }
-        let bj = BoxPrimitive::of(&other.shape, &other.pose);
-        let sj = Shape::cuboid(bj.size);
-        let reach = si.bounding_radius() + sj.bounding_radius() + params.d_pairs;
-        if (bi.pose.translation.vector - bj.pose.translation.vector).norm() > reach {
-            continue;
-        }
-        if shape_distance(&si, &bi.pose, &sj, &bj.pose) < params.d_pairs {
-            out.push(SparkPair {
-                a: bi,
-                b: bj,
-                names: [o.name.clone(), other.name.clone()],
-            });
-        }
-    }
-    out
+    let bo = box_of(o);
+    scene
+        .objects
+        .iter()
+        .enumerate()
+        .filter(|&(j, _)| j != index)
+        .filter_map(|(_, other)| pair_if_close((o, &bo), (other, &box_of(other)), params))
+        .collect()
 }
 
 /// Every pair of scene objects closer than `d_pairs` (exact distance between their bounding
 /// boxes), as SPARK primitives.
 pub fn spark_pairs(scene: &Scene, params: &ExperienceParams) -> Vec<SparkPair> {
-    let boxes: Vec<(Shape, BoxPrimitive)> = scene
-        .objects
-        .iter()
-        .map(|o| {
-            let b = BoxPrimitive::of(&o.shape, &o.pose);
-            (Shape::cuboid(b.size), b)
-        })
-        .collect();
+    let boxes: Vec<_> = scene.objects.iter().map(box_of).collect();
     let mut out = Vec::new();
     for i in 0..boxes.len() {
         for j in i + 1..boxes.len() {
-            let (si, bi) = &boxes[i];
-            let (sj, bj) = &boxes[j];
-            // Cheap reject before GJK.
-            let reach = si.bounding_radius() + sj.bounding_radius() + params.d_pairs;
-            if (bi.pose.translation.vector - bj.pose.translation.vector).norm() > reach {
-                continue;
-            }
-            if shape_distance(si, &bi.pose, sj, &bj.pose) < params.d_pairs {
-                out.push(SparkPair {
-                    a: *bi,
-                    b: *bj,
-                    names: [scene.objects[i].name.clone(), scene.objects[j].name.clone()],
-                });
-            }
+            let (a, b) = (&scene.objects[i], &scene.objects[j]);
+            out.extend(pair_if_close((a, &boxes[i]), (b, &boxes[j]), params));
         }
     }
     out
-}
-
-/// FLAME's local primitive: an occupied octobox of the map.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct OctoboxPrimitive {
-    /// Block key on the map's lattice (position).
-    pub key: BlockKey,
-    /// Occupancy of its 4×4×4 leaves, bit `16x + 4y + z`.
-    pub mask: u64,
-}
-
-/// All non-empty octoboxes of a map.
-pub fn octoboxes(map: &OccupancyMap) -> Vec<OctoboxPrimitive> {
-    let mut v: Vec<OctoboxPrimitive> = map
-        .octoboxes()
-        .map(|o| OctoboxPrimitive {
-            key: o.key,
-            mask: o.mask,
-        })
-        .collect();
-    v.sort_by_key(|o| o.key);
-    v
 }
 
 #[cfg(test)]

@@ -4,8 +4,17 @@
 //! and documented schemas of our own (`ember_msgs/msg/...`) for objects and plans, with their
 //! `ros2msg` schema texts, so ROS 2 tools and the Python `mcap` readers decode them.
 
+//!
+//! This module is the one home of the recording format: topic names ([`topic`], [`TOPICS`]),
+//! message types and schemas, the conversions between wire payloads and recorded messages, and
+//! [`Event`] — one recorded input or answer, what the daemon's recorder writes
+//! ([`Event::messages`]) and what [`crate::session`] reads back.
+
 #![allow(missing_docs)] // Field names mirror the ROS 2 message definitions above them.
 
+mod event;
+
+pub use event::Event;
 use serde::{Deserialize, Serialize};
 
 const SEP: &str =

@@ -7,8 +7,8 @@
 //! all) and a query octobox reads one list: a shift instead of a division finds it, and the list
 //! holds each candidate's key, so testing it reads no entry.
 
-use super::primitive::OctoboxPrimitive;
-use super::{prefetch, ExperienceParams};
+use super::primitive::Octobox;
+use crate::experience::{prefetch, ExperienceParams};
 use crate::world::map::BlockKey;
 
 /// The exact match test on lattice keys, shared by the index and the linear-scan oracle.
@@ -162,7 +162,7 @@ impl FlameIndex {
     }
 
     /// Indexes entry `entry`, whose key is `octobox`.
-    pub fn add(&mut self, entry: u32, octobox: &OctoboxPrimitive) {
+    pub fn add(&mut self, entry: u32, octobox: &Octobox) {
         let reach = self.metric.reach;
         let lo = self.cell(octobox.key.map(|v| v.saturating_sub(reach)));
         let hi = self.cell(octobox.key.map(|v| v.saturating_add(reach)));
@@ -219,7 +219,7 @@ impl FlameIndex {
 
     /// Calls `hit(q, e)` for each query octobox `q` (its index in `queries`) and each entry `e`
     /// matching it, queries in order and entries in listing (entry) order per query.
-    pub fn search(&self, queries: &[OctoboxPrimitive], mut hit: impl FnMut(usize, u32)) {
+    pub fn search(&self, queries: &[Octobox], mut hit: impl FnMut(usize, u32)) {
         if self.slots.is_empty() {
             return;
         }
@@ -301,7 +301,7 @@ mod tests {
             );
             // An index over it still works.
             let mut index = FlameIndex::new(m);
-            let octobox = OctoboxPrimitive {
+            let octobox = Octobox {
                 key: [1, -2, 3],
                 mask: 7,
             };

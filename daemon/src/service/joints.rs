@@ -1,0 +1,61 @@
+//! The joint-state service: the robot's measured joint positions (planning-group order).
+
+use super::rejection::Rejection;
+use ember_engine::robot::Robot;
+use ember_sdk::services;
+use ember_sdk::wire::{JointState, PROTOCOL_VERSION};
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+
+/// A decoded joint state.
+pub struct JointsInput {
+    /// Sender's stamp, ns since the Unix epoch.
+    pub stamp_ns: u64,
+    /// Positions in planning-group order, within the limits.
+    pub positions: Vec<f64>,
+}
+
+/// The joint states port.
+pub struct JointsPort(Subscriber<ipc::Service, JointState, ()>);
+
+impl JointsPort {
+    /// Subscribes to the instance's joint states.
+    pub fn open(node: &Node<ipc::Service>, instance: &str) -> anyhow::Result<Self> {
+        let sub = services::joints(node, instance)
+            .map_err(anyhow::Error::msg)?
+            .subscriber_builder()
+            .create()
+            .map_err(|e| anyhow::anyhow!("joint state subscriber: {e:?}"))?;
+        Ok(JointsPort(sub))
+    }
+
+    /// The next waiting joint state, decoded for `robot`; None when none waits.
+    pub fn receive(&self, robot: &Robot) -> Option<Result<JointsInput, Rejection>> {
+        let s = self.0.receive().ok().flatten()?;
+        Some(decode(s.payload(), robot))
+    }
+}
+
+/// Decodes a joint state for `robot`.
+pub fn decode(js: &JointState, robot: &Robot) -> Result<JointsInput, Rejection> {
+    if js.version != PROTOCOL_VERSION {
+        return Err(Rejection::Version {
+            input: "joint state",
+            found: js.version,
+        });
+    }
+    let dof = robot.dof();
+    if js.count as usize != dof {
+        return Err(Rejection::WrongDof {
+            input: "joint state",
+            found: js.count,
+            expected: dof,
+        });
+    }
+    let positions = js.positions[..dof].to_vec();
+    robot.validate(&positions).map_err(Rejection::JointState)?;
+    Ok(JointsInput {
+        stamp_ns: js.stamp_ns,
+        positions,
+    })
+}

@@ -1,0 +1,152 @@
+//! The object service: object updates (add, move, remove) from clients, decoded into world
+//! objects.
+
+use super::rejection::Rejection;
+use ember_engine::collision::Shape;
+use ember_engine::scene::pose_from_xyz_xyzw;
+use ember_engine::world::Object;
+use ember_sdk::client::now_ns;
+use ember_sdk::services;
+use ember_sdk::wire::{self, ShapeKind, PROTOCOL_VERSION};
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+
+/// A decoded object update.
+pub enum ObjectInput {
+    /// Add or move this object.
+    Upsert(Object),
+    /// Remove the object of this name.
+    Remove(String),
+}
+
+/// The object updates port.
+pub struct ObjectsPort(Subscriber<ipc::Service, wire::ObjectUpdate, ()>);
+
+impl ObjectsPort {
+    /// Subscribes to the instance's object updates.
+    pub fn open(node: &Node<ipc::Service>, instance: &str) -> anyhow::Result<Self> {
+        let sub = services::objects(node, instance)
+            .map_err(anyhow::Error::msg)?
+            .subscriber_builder()
+            .create()
+            .map_err(|e| anyhow::anyhow!("object subscriber: {e:?}"))?;
+        Ok(ObjectsPort(sub))
+    }
+
+    /// The next waiting update as received (for the recording) and decoded; None when none
+    /// waits.
+    pub fn receive(&self) -> Option<(wire::ObjectUpdate, Result<ObjectInput, Rejection>)> {
+        let s = self.0.receive().ok().flatten()?;
+        let u = *s.payload();
+        Some((u, decode(&u)))
+    }
+}
+
+/// Decodes an update.
+pub fn decode(u: &wire::ObjectUpdate) -> Result<ObjectInput, Rejection> {
+    if u.version != PROTOCOL_VERSION {
+        return Err(Rejection::Version {
+            input: "object update",
+            found: u.version,
+        });
+    }
+    Ok(match object_of(u)? {
+        Some(o) => ObjectInput::Upsert(o),
+        None => ObjectInput::Remove(wire::name_str(&u.id)),
+    })
+}
+
+/// The object an update adds or moves (None: a removal), or why it is refused.
+pub fn object_of(u: &wire::ObjectUpdate) -> Result<Option<Object>, Rejection> {
+    let id = wire::name_str(&u.id);
+    if id.is_empty() {
+        return Err(Rejection::ObjectWithoutId);
+    }
+    if !u.dims.iter().chain(u.pose.iter()).all(|v| v.is_finite()) {
+        return Err(Rejection::ObjectNotFinite(id));
+    }
+    let d = u.dims;
+    let shape = match u.shape {
+        s if s == ShapeKind::Remove as u32 => return Ok(None),
+        s if s == ShapeKind::Box as u32 => Shape::cuboid(d),
+        s if s == ShapeKind::Cylinder as u32 => Shape::Cylinder {
+            radius: d[0],
+            half_length: d[1] / 2.0,
+        },
+        s if s == ShapeKind::Sphere as u32 => Shape::Sphere { radius: d[0] },
+        s if s == ShapeKind::Capsule as u32 => Shape::Capsule {
+            radius: d[0],
+            half_length: d[1] / 2.0,
+        },
+        code => return Err(Rejection::UnknownShape { id, code }),
+    };
+    if !shape.is_valid() {
+        return Err(Rejection::ObjectDimensions { id, dims: d });
+    }
+    let p = u.pose;
+    let pose = pose_from_xyz_xyzw([p[0], p[1], p[2]], [p[3], p[4], p[5], p[6]])
+        .ok_or_else(|| Rejection::ObjectQuaternion(id.clone()))?;
+    Ok(Some(Object {
+        name: id,
+        shape,
+        pose,
+    }))
+}
+
+/// The wire update that adds or moves `object` (the inverse of [`object_of`]).
+pub fn update_of(object: &Object) -> wire::ObjectUpdate {
+    let (shape, dims) = match object.shape {
+        Shape::Box { half_extents: h } => (ShapeKind::Box, [2.0 * h[0], 2.0 * h[1], 2.0 * h[2]]),
+        Shape::Cylinder {
+            radius,
+            half_length,
+        } => (ShapeKind::Cylinder, [radius, 2.0 * half_length, 0.0]),
+        Shape::Sphere { radius } => (ShapeKind::Sphere, [radius, 0.0, 0.0]),
+        Shape::Capsule {
+            radius,
+            half_length,
+        } => (ShapeKind::Capsule, [radius, 2.0 * half_length, 0.0]),
+    };
+    let (t, q) = ember_engine::scene::pose_to_xyz_xyzw(&object.pose);
+    wire::ObjectUpdate {
+        version: PROTOCOL_VERSION,
+        shape: shape as u32,
+        stamp_ns: now_ns(),
+        id: wire::name(&object.name),
+        dims,
+        pose: [t[0], t[1], t[2], q[0], q[1], q[2], q[3]],
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wire_updates_round_trip_every_shape() {
+        let pose =
+            pose_from_xyz_xyzw([0.5, -0.2, 0.8], [0.0, 0.0, 0.38268343, 0.92387953]).unwrap();
+        for shape in [
+            Shape::cuboid([0.4, 1.0, 0.04]),
+            Shape::Cylinder {
+                radius: 0.035,
+                half_length: 0.06,
+            },
+            Shape::Sphere { radius: 0.1 },
+            Shape::Capsule {
+                radius: 0.05,
+                half_length: 0.2,
+            },
+        ] {
+            let o = Object {
+                name: "thing".into(),
+                shape,
+                pose,
+            };
+            let back = object_of(&update_of(&o)).unwrap().unwrap();
+            assert_eq!((back.name.as_str(), back.shape), ("thing", shape));
+            assert!((back.pose.translation.vector - pose.translation.vector).norm() < 1e-12);
+            assert!(back.pose.rotation.angle_to(&pose.rotation) < 1e-9);
+        }
+    }
+}
