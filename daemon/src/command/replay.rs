@@ -45,6 +45,7 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
     let robot = super::load_robot(&args.robot.spec("fetch"))?;
     let topics = TopicMap::parse(&args.topic_map)?;
     let base = taken(&client)?;
+    let started = Instant::now();
     let mut sent = 0u64;
     let (mut plans, mut reproduced, mut messages) = (0usize, 0usize, 0usize);
     let mut last_reply: Option<(u64, Vec<f64>, u32)> = None;
@@ -87,8 +88,8 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
                 Event::PlanRequest(r) => {
                     // The world must hold everything recorded before the request.
                     wait_taken(&client, base, sent, 0)?;
-                    let header = r.wire_header();
-                    let timeout = Duration::from_secs_f64(r.time_limit_s.max(1.0) + 30.0);
+                    let header = r.request;
+                    let timeout = Duration::from_secs_f64(r.request.time_limit_s.max(1.0) + 30.0);
                     let reply = client.plan_raw(header, &r.values, timeout)?;
                     last_reply = Some((r.header.stamp.ns(), reply.path.concat(), reply.header.status));
                     last_trajectory = reply.trajectory.map(|t| (r.header.stamp.ns(), t));
@@ -117,7 +118,10 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
             Ok(())
         })?;
     }
-    println!("messages replayed: {messages}");
+    println!(
+        "messages replayed: {messages} in {:.1} s",
+        started.elapsed().as_secs_f64()
+    );
     println!("plans reproduced: {reproduced}/{plans}");
     if timed > 0 {
         println!("trajectories reproduced: {timed_reproduced}/{timed}");

@@ -75,11 +75,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         config.map.resolution,
     )?;
     for s in set_aside {
-        error!(
-            "{}; moved to {} and starting empty",
-            s.error,
-            s.moved_to.display()
-        );
+        error!("{s}");
     }
     let snapshot: SnapshotCell = Arc::new(Mutex::new(Arc::new(World::new(&config).snapshot())));
     let stats = Arc::new(Stats::default());

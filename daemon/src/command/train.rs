@@ -23,11 +23,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<ExitCode> {
         config.map.resolution,
     )?;
     for s in set_aside {
-        eprintln!(
-            "warning: {}; moved to {} and starting empty",
-            s.error,
-            s.moved_to.display()
-        );
+        eprintln!("warning: {s}");
     }
     let (spark0, flame0) = (experience.spark.len(), experience.flame.len());
     let topics = TopicMap::parse(&args.topic_map)?;

@@ -2,15 +2,16 @@
 
 use crate::config::Config;
 use crate::recorder::RecorderStats;
+use crate::service::plan::decode::method_of;
 use crate::service::plan::Answer;
 use crate::service::SnapshotCell;
 use crate::service::Stats;
+use ember_engine::experience;
 use ember_engine::robot::Robot;
 use ember_sdk::monitor::{
     DatabaseDoc, InputsDoc, MapDoc, MapSnapshot, PlanSummary, PlansDoc, RecordingDoc, StatusDoc,
-    WorldDoc,
 };
-use ember_sdk::wire::{GoalKind, Method, PlanRequestHeader, PROTOCOL_VERSION};
+use ember_sdk::wire::{GoalKind, PlanRequestHeader, PROTOCOL_VERSION};
 use ember_sdk::Status;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -71,7 +72,12 @@ impl Sources {
     /// The status; `tick` also restarts the rate window (the periodic publication does).
     pub fn status(&self, tick: bool) -> StatusDoc {
         let st = self.stats.inner.lock().expect("stats lock");
-        let counts = [st.clouds, st.objects, st.joint_states, st.plans];
+        let counts = [
+            st.inputs.clouds,
+            st.inputs.objects,
+            st.inputs.joint_states,
+            st.plans.total,
+        ];
         let hz = {
             let mut r = self.rates.lock().expect("rates lock");
             if tick {
@@ -100,39 +106,29 @@ impl Sources {
             uptime_s: self.started.elapsed().as_secs_f64(),
             stamp_ns: ember_sdk::client::now_ns(),
             inputs: InputsDoc {
-                clouds: st.clouds,
-                objects: st.objects,
-                joint_states: st.joint_states,
-                rejected: st.rejected,
                 cloud_hz: hz[0],
                 object_hz: hz[1],
                 joint_hz: hz[2],
                 cloud_latency_p50_us: cloud_p50,
                 cloud_latency_p99_us: cloud_p99,
-                last_cloud_stamp_ns: st.last_cloud_stamp_ns,
+                ..st.inputs.clone()
             },
             map: MapDoc {
                 resolution: self.resolution,
-                blocks: st.map_blocks,
-                occupied_blocks: st.map_occupied_blocks,
-                memory_bytes: st.map_memory_bytes,
+                ..st.map.clone()
             },
-            world: WorldDoc {
-                objects: st.world_objects,
-                spark_pairs: st.spark_pairs,
-            },
+            world: st.world.clone(),
             experience: DatabaseDoc {
-                spark_entries: st.spark_entries,
-                flame_entries: st.flame_entries,
+                spark_entries: st.experience.spark_entries,
+                flame_entries: st.experience.flame_entries,
                 ..self.database.clone()
             },
             plans: PlansDoc {
-                total: st.plans,
-                solved: st.solved,
-                failed: st.plans - st.solved,
+                failed: st.plans.total - st.plans.solved,
                 rate_hz: hz[3],
                 latency_p50_ms: plan_p50 / 1e3,
                 latency_p99_ms: plan_p99 / 1e3,
+                ..st.plans.clone()
             },
             recording: match &self.recorder {
                 Some(r) => RecordingDoc {
@@ -156,8 +152,8 @@ impl Sources {
     pub fn database(&self) -> DatabaseDoc {
         let st = self.stats.inner.lock().expect("stats lock");
         DatabaseDoc {
-            spark_entries: st.spark_entries,
-            flame_entries: st.flame_entries,
+            spark_entries: st.experience.spark_entries,
+            flame_entries: st.experience.flame_entries,
             ..self.database.clone()
         }
     }
@@ -176,7 +172,7 @@ impl Sources {
     /// The occupied map, decimated to octoboxes (binary), and the clouds folded in so far (the
     /// map changes only with them).
     pub fn map(&self) -> (u64, Vec<u8>) {
-        let clouds = self.stats.inner.lock().expect("stats lock").clouds;
+        let clouds = self.stats.inner.lock().expect("stats lock").inputs.clouds;
         let snap = self.snapshot.lock().expect("snapshot lock").clone();
         let snapshot = MapSnapshot {
             resolution: self.resolution as f32,
@@ -196,11 +192,10 @@ pub fn plan_summary(
     answer: &Answer,
 ) -> PlanSummary {
     let h = &answer.header;
-    let method = match h.method {
-        m if m == Method::Spark as u32 => "spark",
-        m if m == Method::Flame as u32 => "flame",
-        _ => "uniform",
-    };
+    // Replies carry the method used (`auto` resolved); a code no version knows shows as uniform.
+    let method = method_of(h.method, experience::Method::Uniform)
+        .unwrap_or(experience::Method::Uniform)
+        .name();
     PlanSummary {
         instance: instance.to_string(),
         seq,

@@ -5,7 +5,7 @@ use super::rejection::Rejection;
 use ember_engine::scene::pose_from_xyz_xyzw;
 use ember_engine::Pose;
 use ember_sdk::services;
-use ember_sdk::wire::{self, CloudHeader, Point, PROTOCOL_VERSION};
+use ember_sdk::wire::{self, CloudHeader, Point};
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use iceoryx2::sample::Sample;
@@ -55,12 +55,7 @@ impl CloudPort {
 
 /// Checks a cloud's header against its payload of `points` points; gives the sensor pose.
 pub fn decode(h: &CloudHeader, points: usize, max_points: usize) -> Result<Pose, Rejection> {
-    if h.version != PROTOCOL_VERSION {
-        return Err(Rejection::Version {
-            input: "cloud",
-            found: h.version,
-        });
-    }
+    Rejection::check_version("cloud", h.version)?;
     if points == 0 || h.point_count as usize != points {
         return Err(Rejection::PointCount {
             header: h.point_count,

@@ -66,7 +66,12 @@ impl Ingest {
                             },
                         );
                         world.set_joints(js.positions);
-                        self.stats.inner.lock().expect("stats lock").joint_states += 1;
+                        self.stats
+                            .inner
+                            .lock()
+                            .expect("stats lock")
+                            .inputs
+                            .joint_states += 1;
                     }
                     Err(why) => self.stats.rejected(&why),
                 }
@@ -88,7 +93,7 @@ impl Ingest {
                 match applied {
                     Ok(()) => {
                         changed = true;
-                        self.stats.inner.lock().expect("stats lock").objects += 1;
+                        self.stats.inner.lock().expect("stats lock").inputs.objects += 1;
                     }
                     Err(why) => self.stats.rejected(&why),
                 }
@@ -110,8 +115,8 @@ impl Ingest {
                         },
                     );
                     let mut st = self.stats.inner.lock().expect("stats lock");
-                    st.clouds += 1;
-                    st.last_cloud_stamp_ns = h.stamp_ns;
+                    st.inputs.clouds += 1;
+                    st.inputs.last_cloud_stamp_ns = h.stamp_ns;
                     st.cloud_latency_us
                         .push(recv_ns.saturating_sub(h.stamp_ns) as f64 / 1e3);
                     changed = true;
@@ -123,11 +128,11 @@ impl Ingest {
                 let snap = world.snapshot();
                 {
                     let mut st = self.stats.inner.lock().expect("stats lock");
-                    st.map_blocks = snap.map.block_count() as u64;
-                    st.map_occupied_blocks = snap.octoboxes.len() as u64;
-                    st.map_memory_bytes = snap.map.memory_bytes() as u64;
-                    st.world_objects = snap.scene.objects.len() as u64;
-                    st.spark_pairs = snap.pairs.len() as u64;
+                    st.map.blocks = snap.map.block_count() as u64;
+                    st.map.occupied_blocks = snap.octoboxes.len() as u64;
+                    st.map.memory_bytes = snap.map.memory_bytes() as u64;
+                    st.world.objects = snap.scene.objects.len() as u64;
+                    st.world.spark_pairs = snap.pairs.len() as u64;
                 }
                 *self.snapshot.lock().expect("snapshot lock") = Arc::new(snap);
             } else if node.wait(Duration::from_micros(50)).is_err() {

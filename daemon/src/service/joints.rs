@@ -3,7 +3,7 @@
 use super::rejection::Rejection;
 use ember_engine::robot::Robot;
 use ember_sdk::services;
-use ember_sdk::wire::{JointState, PROTOCOL_VERSION};
+use ember_sdk::wire::JointState;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 
@@ -38,20 +38,9 @@ impl JointsPort {
 
 /// Decodes a joint state for `robot`.
 pub fn decode(js: &JointState, robot: &Robot) -> Result<JointsInput, Rejection> {
-    if js.version != PROTOCOL_VERSION {
-        return Err(Rejection::Version {
-            input: "joint state",
-            found: js.version,
-        });
-    }
+    Rejection::check_version("joint state", js.version)?;
     let dof = robot.dof();
-    if js.count as usize != dof {
-        return Err(Rejection::WrongDof {
-            input: "joint state",
-            found: js.count,
-            expected: dof,
-        });
-    }
+    Rejection::check_dof("joint state", js.count, dof)?;
     let positions = js.positions[..dof].to_vec();
     robot.validate(&positions).map_err(Rejection::JointState)?;
     Ok(JointsInput {

@@ -18,6 +18,7 @@ pub use rejection::Rejection;
 
 use crate::world::Snapshot;
 use ember_engine::experience::{Database, Experience};
+use ember_sdk::monitor::{DatabaseDoc, InputsDoc, MapDoc, PlansDoc, WorldDoc};
 use ember_sdk::wire::PlanResponseHeader;
 use std::sync::{Arc, Mutex};
 
@@ -34,49 +35,53 @@ impl Stats {
     /// Counts an answered request (and the databases' sizes); returns its sequence number.
     pub fn planned(&self, h: &PlanResponseHeader, experience: &Experience) -> u64 {
         let mut st = self.inner.lock().expect("stats lock");
-        st.plans += 1;
-        st.solved += (h.status == 0) as u64;
+        st.plans.total += 1;
+        st.plans.solved += (h.status == 0) as u64;
         st.plan_latency_us.push(h.total_us);
-        st.spark_entries = experience.spark.len() as u64;
-        st.flame_entries = experience.flame.len() as u64;
-        st.plans
+        st.set_experience(experience);
+        st.plans.total
     }
 
     /// Records the databases' sizes after learning.
     pub fn learned(&self, experience: &Experience) {
-        let mut st = self.inner.lock().expect("stats lock");
-        st.spark_entries = experience.spark.len() as u64;
-        st.flame_entries = experience.flame.len() as u64;
+        self.inner
+            .lock()
+            .expect("stats lock")
+            .set_experience(experience);
     }
 
     /// Counts a refused input, and logs why.
     pub fn rejected(&self, why: &Rejection) {
         tracing::warn!("rejected input: {why}");
-        self.inner.lock().expect("stats lock").rejected += 1;
+        self.inner.lock().expect("stats lock").inputs.rejected += 1;
     }
 }
 
-/// The counters (see [`ember_sdk::monitor::StatusDoc`], which they are published as).
+/// The counters, kept in the monitor's document types ([`ember_sdk::monitor::StatusDoc`]'s
+/// parts); rates and percentiles are filled in when a document is made.
 #[derive(Debug, Default)]
 pub struct StatsInner {
-    pub clouds: u64,
-    pub objects: u64,
-    pub joint_states: u64,
-    pub rejected: u64,
-    pub plans: u64,
-    pub solved: u64,
-    pub last_cloud_stamp_ns: u64,
+    /// Input counts (rates and latency percentiles left at zero here).
+    pub inputs: InputsDoc,
+    /// Map size (resolution filled in when published).
+    pub map: MapDoc,
+    /// World size.
+    pub world: WorldDoc,
+    /// Database sizes (settings filled in when published).
+    pub experience: DatabaseDoc,
+    /// Plans answered and solved (the rest filled in when published).
+    pub plans: PlansDoc,
     /// Cloud hand-off latencies, µs.
     pub cloud_latency_us: Recent,
     /// Plan latencies in the daemon (receipt to reply), µs.
     pub plan_latency_us: Recent,
-    pub map_blocks: u64,
-    pub map_occupied_blocks: u64,
-    pub map_memory_bytes: u64,
-    pub world_objects: u64,
-    pub spark_pairs: u64,
-    pub spark_entries: u64,
-    pub flame_entries: u64,
+}
+
+impl StatsInner {
+    fn set_experience(&mut self, experience: &Experience) {
+        self.experience.spark_entries = experience.spark.len() as u64;
+        self.experience.flame_entries = experience.flame.len() as u64;
+    }
 }
 
 /// The last 1000 values of a measurement, for percentiles.

@@ -44,12 +44,7 @@ impl ObjectsPort {
 
 /// Decodes an update.
 pub fn decode(u: &wire::ObjectUpdate) -> Result<ObjectInput, Rejection> {
-    if u.version != PROTOCOL_VERSION {
-        return Err(Rejection::Version {
-            input: "object update",
-            found: u.version,
-        });
-    }
+    Rejection::check_version("object update", u.version)?;
     Ok(match object_of(u)? {
         Some(o) => ObjectInput::Upsert(o),
         None => ObjectInput::Remove(wire::name_str(&u.id)),

@@ -122,6 +122,27 @@ pub enum Rejection {
 }
 
 impl Rejection {
+    /// Refuses an `input` written for protocol version `found` when it is not this daemon's.
+    pub fn check_version(input: &'static str, found: u32) -> Result<(), Rejection> {
+        match found == PROTOCOL_VERSION {
+            true => Ok(()),
+            false => Err(Rejection::Version { input, found }),
+        }
+    }
+
+    /// Refuses an `input` whose configurations have `found` joints where the robot has
+    /// `expected`.
+    pub fn check_dof(input: &'static str, found: u32, expected: usize) -> Result<(), Rejection> {
+        match found as usize == expected {
+            true => Ok(()),
+            false => Err(Rejection::WrongDof {
+                input,
+                found,
+                expected,
+            }),
+        }
+    }
+
     /// The status a plan reply carries for this rejection.
     pub fn status(&self) -> Status {
         match self {

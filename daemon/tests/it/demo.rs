@@ -98,7 +98,7 @@ fn the_demo_plans_with_every_method_through_the_daemon_and_keeps_its_session() {
                     Event::Joints { .. } => joints += 1,
                     Event::PlanRequest(r) => {
                         requests += 1;
-                        no_learn += (r.flags & FLAG_NO_LEARN != 0) as usize;
+                        no_learn += (r.request.flags & FLAG_NO_LEARN != 0) as usize;
                     }
                     Event::PlanResponse(r) => solved += (r.status == 0) as usize,
                     Event::PlanTrajectory(t) => {

@@ -31,8 +31,10 @@ impl Method {
     }
 }
 
-/// A database file that could not be loaded and was moved aside (never overwritten).
-#[derive(Debug, Clone, PartialEq)]
+/// A database file that could not be loaded and was moved aside (never overwritten); shown as
+/// one sentence for logs.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{error}; moved to {} and starting empty", moved_to.display())]
 pub struct SetAside {
     /// Why it could not be loaded.
     pub error: DbError,

@@ -125,35 +125,8 @@ impl PlanRequest {
     pub fn new(recv_ns: u64, h: &PlanRequestHeader, values: &[f64]) -> Self {
         PlanRequest {
             header: header(recv_ns, "base_link"),
-            version: h.version,
-            dof: h.dof,
-            goal_kind: h.goal_kind,
-            goal_count: h.goal_count,
-            method: h.method,
-            flags: h.flags,
-            time_limit_s: h.time_limit_s,
-            seed: h.seed,
-            pose: h.pose,
-            position_tolerance: h.position_tolerance,
-            orientation_tolerance: h.orientation_tolerance,
+            request: *h,
             values: values.to_vec(),
-        }
-    }
-
-    /// The wire header the request was received with (its payload is [`PlanRequest::values`]).
-    pub fn wire_header(&self) -> PlanRequestHeader {
-        PlanRequestHeader {
-            version: self.version,
-            dof: self.dof,
-            goal_kind: self.goal_kind,
-            goal_count: self.goal_count,
-            method: self.method,
-            flags: self.flags,
-            time_limit_s: self.time_limit_s,
-            seed: self.seed,
-            pose: self.pose,
-            position_tolerance: self.position_tolerance,
-            orientation_tolerance: self.orientation_tolerance,
         }
     }
 }

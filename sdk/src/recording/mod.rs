@@ -282,21 +282,12 @@ pub struct ObjectUpdate {
     pub pose: Pose,
 }
 
-/// `ember_msgs/msg/PlanRequest`.
+/// `ember_msgs/msg/PlanRequest`: the wire header's fields after the message header (CDR lays a
+/// nested struct out as its fields), then the payload.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct PlanRequest {
     pub header: Header,
-    pub version: u32,
-    pub dof: u32,
-    pub goal_kind: u32,
-    pub goal_count: u32,
-    pub method: u32,
-    pub flags: u32,
-    pub time_limit_s: f64,
-    pub seed: u64,
-    pub pose: [f64; 7],
-    pub position_tolerance: f64,
-    pub orientation_tolerance: f64,
+    pub request: crate::wire::PlanRequestHeader,
     pub values: Vec<f64>,
 }
 

@@ -128,7 +128,9 @@ pub enum Method {
 }
 
 /// The request header.
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+#[derive(
+    Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, serde::Serialize, serde::Deserialize,
+)]
 #[type_name("EmberPlanRequest")]
 #[repr(C)]
 pub struct PlanRequestHeader {

@@ -179,6 +179,7 @@ pub fn run(args: DemoArgs) -> anyhow::Result<ExitCode> {
         .parent()
         .map_or(PathBuf::from("."), Path::to_path_buf);
     let daemon = DemoDaemon::start(&args, &work)?;
+    let started = Instant::now();
     let client = {
         let deadline = Instant::now() + Duration::from_secs(10);
         loop {
@@ -294,6 +295,7 @@ pub fn run(args: DemoArgs) -> anyhow::Result<ExitCode> {
     rig.stop()?;
     let recording = daemon.recording.clone();
     daemon.stop()?;
+    let seconds = started.elapsed().as_secs_f64();
 
     println!(
         "\n{:<8} {:>8} {:>7} {:>10} {:>9} {:>13} {:>11}",
@@ -320,7 +322,14 @@ pub fn run(args: DemoArgs) -> anyhow::Result<ExitCode> {
         "\nplan latency is end to end (client request to reply over iceoryx2), retrieval and \
          trajectory timing included; executes_s: how long the timed trajectory runs on the robot"
     );
-    println!("recording: {recording}");
+    match std::fs::metadata(&recording) {
+        Ok(m) => println!(
+            "recording: {recording} ({:.1} MB, {:.1} MB per second of demo)",
+            m.len() as f64 / 1e6,
+            m.len() as f64 / 1e6 / seconds
+        ),
+        Err(_) => println!("recording: {recording}"),
+    }
     println!("experience database: {}", args.db.display());
     for r in results {
         println!("{r}");

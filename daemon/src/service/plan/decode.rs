@@ -8,7 +8,7 @@ use ember_engine::planning::{Goal, PlanRequest, PlannerParams, PoseGoal};
 use ember_engine::robot::Robot;
 use ember_engine::scene::pose_from_xyz_xyzw;
 use ember_engine::trajectory::TimingParams;
-use ember_sdk::wire::{self, GoalKind, PlanRequestHeader, PROTOCOL_VERSION};
+use ember_sdk::wire::{self, GoalKind, PlanRequestHeader};
 use std::time::Duration;
 
 /// A request decoded into engine terms.
@@ -22,7 +22,7 @@ pub struct Decoded {
 }
 
 /// The engine method a wire method code asks for (`auto`: `default`).
-fn method_of(code: u32, default: Method) -> Result<Method, Rejection> {
+pub fn method_of(code: u32, default: Method) -> Result<Method, Rejection> {
     use ember_sdk::wire::Method as M;
     Ok(match code {
         c if c == M::Auto as u32 => default,
@@ -52,20 +52,9 @@ pub fn decode(
     h: &PlanRequestHeader,
     values: &[f64],
 ) -> Result<Decoded, Rejection> {
-    if h.version != PROTOCOL_VERSION {
-        return Err(Rejection::Version {
-            input: "request",
-            found: h.version,
-        });
-    }
+    Rejection::check_version("request", h.version)?;
     let dof = robot.dof();
-    if h.dof as usize != dof {
-        return Err(Rejection::WrongDof {
-            input: "request",
-            found: h.dof,
-            expected: dof,
-        });
-    }
+    Rejection::check_dof("request", h.dof, dof)?;
     let goal_kind = match h.goal_kind {
         k if k == GoalKind::Joints as u32 => GoalKind::Joints,
         k if k == GoalKind::Pose as u32 => GoalKind::Pose,
