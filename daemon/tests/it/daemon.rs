@@ -528,3 +528,31 @@ fn a_plan_flagged_no_learn_leaves_the_database_alone() {
         "the same plan without the flag is learned"
     );
 }
+
+#[test]
+fn a_corrupt_database_is_set_aside_and_the_daemon_serves() {
+    let instance = format!("it-corrupt-{}", std::process::id());
+    let db_dir = std::env::temp_dir().join(format!("ember-db-{instance}"));
+    std::fs::create_dir_all(&db_dir).unwrap();
+    let [spark, _] = ember_engine::experience::Experience::files(&db_dir);
+    std::fs::write(&spark, b"EMBEREXP not really a database").unwrap();
+    let d = Daemon::start_with(instance, db_dir.clone(), &["--no-monitor"]);
+    let client = d.client();
+    let s = client.status(Duration::from_secs(2)).unwrap();
+    assert_eq!(s.spark_entries, 0);
+    // Kept beside itself, byte for byte, never overwritten.
+    let aside: Vec<_> = std::fs::read_dir(&db_dir)
+        .unwrap()
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.to_string_lossy().contains(".corrupt-"))
+        .collect();
+    assert_eq!(aside.len(), 1, "{aside:?}");
+    assert_eq!(
+        std::fs::read(&aside[0]).unwrap(),
+        b"EMBEREXP not really a database"
+    );
+    let r = client
+        .plan(&call(FREE_GOAL), Duration::from_secs(20))
+        .unwrap();
+    assert_eq!(r.status, Status::Ok, "{}", r.message());
+}

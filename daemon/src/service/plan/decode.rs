@@ -153,3 +153,97 @@ pub fn decode(
         learn: config.experience.online_learning && h.flags & wire::FLAG_NO_LEARN == 0,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn request(robot: &Robot) -> (PlanRequestHeader, Vec<f64>) {
+        let dof = robot.dof();
+        let h = PlanRequestHeader {
+            version: wire::PROTOCOL_VERSION,
+            dof: dof as u32,
+            goal_kind: GoalKind::Joints as u32,
+            goal_count: 1,
+            method: wire::Method::Auto as u32,
+            ..Default::default()
+        };
+        (h, vec![0.1; 2 * dof])
+    }
+
+    #[test]
+    fn each_malformed_field_has_its_own_rejection() {
+        let robot = Robot::builtin("fetch").unwrap();
+        let config = Config::load(None).unwrap();
+        let decode = |h: &PlanRequestHeader, v: &[f64]| {
+            decode(&config, &robot, Method::Spark, h, v).map(|d| d.method)
+        };
+        let (h, v) = request(&robot);
+        assert_eq!(
+            decode(&h, &v),
+            Ok(Method::Spark),
+            "auto: the default method"
+        );
+        let with = |f: &dyn Fn(&mut PlanRequestHeader)| {
+            let mut h = h;
+            f(&mut h);
+            decode(&h, &v).unwrap_err()
+        };
+        assert!(matches!(
+            with(&|h| h.version = 99),
+            Rejection::Version { found: 99, .. }
+        ));
+        assert!(matches!(
+            with(&|h| h.dof = 7),
+            Rejection::WrongDof {
+                found: 7,
+                expected: 8,
+                ..
+            }
+        ));
+        assert_eq!(with(&|h| h.goal_kind = 9), Rejection::UnknownGoalKind(9));
+        assert_eq!(with(&|h| h.method = 9), Rejection::UnknownMethod(9));
+        assert_eq!(
+            with(&|h| h.flags = 1 << 30),
+            Rejection::UnknownFlags(1 << 30)
+        );
+        assert_eq!(with(&|h| h.goal_count = 0), Rejection::NoGoal);
+        assert!(matches!(
+            with(&|h| h.goal_count = 2),
+            Rejection::PayloadLength {
+                found: 16,
+                expected: 24,
+                ..
+            }
+        ));
+        assert_eq!(with(&|h| h.time_limit_s = f64::NAN), Rejection::NotFinite);
+        assert_eq!(
+            with(&|h| h.goal_kind = GoalKind::Pose as u32),
+            Rejection::PayloadLength {
+                found: 16,
+                expected: 8,
+                configurations: 1,
+                dof: 8,
+                timed: false
+            }
+        );
+        let mut pose = h;
+        pose.goal_kind = GoalKind::Pose as u32;
+        assert_eq!(
+            decode(&pose, &v[..8]).unwrap_err(),
+            Rejection::ZeroQuaternion
+        );
+        pose.pose[6] = 1.0;
+        assert_eq!(decode(&pose, &v[..8]).unwrap_err(), Rejection::Tolerances);
+        // Each maps to the status code of its kind.
+        assert_eq!(
+            with(&|h| h.version = 99).status(),
+            ember_sdk::Status::VersionMismatch
+        );
+        assert_eq!(with(&|h| h.dof = 7).status(), ember_sdk::Status::WrongDof);
+        assert_eq!(
+            with(&|h| h.method = 9).status(),
+            ember_sdk::Status::BadRequest
+        );
+    }
+}
