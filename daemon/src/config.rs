@@ -4,6 +4,9 @@
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
+/// The most ports of one kind a service may admit (each costs shared memory).
+const MAX_PORTS: usize = 256;
+
 /// The embedded default configuration.
 pub const DEFAULT_TOML: &str = include_str!("../../config/emberd.toml");
 
@@ -29,6 +32,27 @@ pub struct Config {
     pub experience: ExperienceConfig,
     pub record: RecordConfig,
     pub monitor: MonitorConfig,
+    pub limits: LimitsConfig,
+}
+
+/// `[limits]`: how many clients, publishers and subscribers the services admit.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LimitsConfig {
+    pub clients: usize,
+    pub publishers: usize,
+    pub subscribers: usize,
+}
+
+impl LimitsConfig {
+    /// The services' limits.
+    pub fn get(&self) -> ember_sdk::services::Limits {
+        ember_sdk::services::Limits {
+            clients: self.clients,
+            publishers: self.publishers,
+            subscribers: self.subscribers,
+        }
+    }
 }
 
 /// `[monitor]`: Zenoh publications for remote watchers (read-only).
@@ -215,6 +239,16 @@ impl Config {
             return Err(
                 "keys map.bounds_min / map.bounds_max: min must be below max on every axis".into(),
             );
+        }
+        for (key, v) in [
+            ("limits.clients", self.limits.clients),
+            ("limits.publishers", self.limits.publishers),
+            // The daemon's own subscriber is one.
+            ("limits.subscribers", self.limits.subscribers),
+        ] {
+            if !(1..=MAX_PORTS).contains(&v) {
+                return Err(format!("key {key} must be 1 to {MAX_PORTS}, got {v}"));
+            }
         }
         if self.map.max_points == 0 {
             return Err("key map.max_points must be at least 1".into());

@@ -1,6 +1,6 @@
 //! The client: what a robot stack links to talk to `emberd`.
 
-use crate::services;
+use crate::services::{self, Open};
 use crate::status::Status;
 use crate::wire::plan::MAX_PLAN_VALUES;
 use crate::wire::{
@@ -8,8 +8,9 @@ use crate::wire::{
     PlanResponseHeader, Point, ShapeKind, MAX_CLOUD_POINTS, MAX_JOINTS, PROTOCOL_VERSION,
 };
 use iceoryx2::port::client::Client as RrClient;
-use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::publisher::{Publisher, PublisherCreateError};
 use iceoryx2::prelude::*;
+use iceoryx2::service::port_factory::client::ClientCreateError;
 use std::time::{Duration, Instant, SystemTime};
 use thiserror::Error;
 
@@ -25,6 +26,18 @@ pub enum ClientError {
     /// No daemon serves this instance.
     #[error("no daemon serves instance '{0}'")]
     NoDaemon(String),
+    /// The daemon serves, but a service has all its ports of one kind taken.
+    #[error(
+        "the daemon's {service} service admits {max} {kind} and all are taken (emberd's `limits.{kind}` sets how many)"
+    )]
+    LimitReached {
+        /// Service name (`cloud`, `plan`, ...).
+        service: &'static str,
+        /// `publishers` or `clients`.
+        kind: &'static str,
+        /// How many the service admits.
+        max: usize,
+    },
     /// The daemon did not answer in time.
     #[error("no reply within {0:?}")]
     Timeout(Duration),
@@ -109,37 +122,66 @@ impl Client {
             .signal_handling_mode(SignalHandlingMode::Disabled)
             .create::<ipc::Service>()
             .map_err(transport)?;
-        let plan_service = services::plan(&node, instance).map_err(ClientError::Transport)?;
+        let no_daemon = |e: String| match e.contains("DoesNotExist") {
+            true => ClientError::NoDaemon(instance.into()),
+            false => ClientError::Transport(e),
+        };
+        let plan_service = services::plan(&node, instance, Open::Attach).map_err(no_daemon)?;
         if plan_service.dynamic_config().number_of_servers() == 0 {
             return Err(ClientError::NoDaemon(instance.into()));
         }
-        let cloud = services::cloud(&node, instance)
-            .map_err(ClientError::Transport)?
+        let publishers = |service: &'static str, max: usize| {
+            move |e: PublisherCreateError| match e {
+                PublisherCreateError::ExceedsMaxSupportedPublishers => ClientError::LimitReached {
+                    service,
+                    kind: "publishers",
+                    max,
+                },
+                e => transport(e),
+            }
+        };
+        let clients = |service: &'static str, max: usize| {
+            move |e: ClientCreateError| match e {
+                ClientCreateError::ExceedsMaxSupportedClients => ClientError::LimitReached {
+                    service,
+                    kind: "clients",
+                    max,
+                },
+                e => transport(e),
+            }
+        };
+        let cloud = services::cloud(&node, instance, Open::Attach).map_err(no_daemon)?;
+        let max = cloud.static_config().max_publishers();
+        let cloud = cloud
             .publisher_builder()
             .initial_max_slice_len(MAX_CLOUD_POINTS)
             .create()
-            .map_err(transport)?;
-        let objects = services::objects(&node, instance)
-            .map_err(ClientError::Transport)?
+            .map_err(publishers("cloud", max))?;
+        let objects = services::objects(&node, instance, Open::Attach).map_err(no_daemon)?;
+        let max = objects.static_config().max_publishers();
+        let objects = objects
             .publisher_builder()
             .create()
-            .map_err(transport)?;
-        let joints = services::joints(&node, instance)
-            .map_err(ClientError::Transport)?
+            .map_err(publishers("object", max))?;
+        let joints = services::joints(&node, instance, Open::Attach).map_err(no_daemon)?;
+        let max = joints.static_config().max_publishers();
+        let joints = joints
             .publisher_builder()
             .create()
-            .map_err(transport)?;
+            .map_err(publishers("joint-state", max))?;
+        let max = plan_service.static_config().max_clients();
         let plan = plan_service
             .client_builder()
             .initial_max_slice_len(16 * 64)
             .allocation_strategy(AllocationStrategy::PowerOfTwo)
             .create()
-            .map_err(transport)?;
-        let status = services::status(&node, instance)
-            .map_err(ClientError::Transport)?
+            .map_err(clients("plan", max))?;
+        let status = services::status(&node, instance, Open::Attach).map_err(no_daemon)?;
+        let max = status.static_config().max_clients();
+        let status = status
             .client_builder()
             .create()
-            .map_err(transport)?;
+            .map_err(clients("status", max))?;
         Ok(Client {
             node,
             instance: instance.into(),

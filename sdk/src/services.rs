@@ -1,6 +1,11 @@
 //! The service definitions, shared by the daemon and clients so both open them with identical
 //! settings. Sizes are deliberate: the cloud service reserves shared memory for a few 640×480
 //! clouds, not iceoryx2's generous defaults.
+//!
+//! The daemon creates every service ([`Open::Serve`]) with its configured [`Limits`]: how many
+//! clients, publishers and subscribers may attach. Clients attach to what the daemon created
+//! ([`Open::Attach`]) and never create a service, so a client started before its daemon is told
+//! that no daemon serves the instance.
 
 use crate::names::service;
 use crate::wire::plan::MAX_PLAN_VALUES;
@@ -11,55 +16,115 @@ use crate::wire::{
 use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::{publish_subscribe, request_response};
 
+/// How many ports of each kind a daemon's services admit (fixed when the daemon creates them;
+/// emberd's `[limits]`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Limits {
+    /// Clients of the plan and status services (each `Client` is one of each).
+    pub clients: usize,
+    /// Publishers of the cloud, object and joint-state services (each `Client` is one of each).
+    pub publishers: usize,
+    /// Subscribers of the cloud, object and joint-state services (the daemon is one).
+    pub subscribers: usize,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Limits {
+            clients: 16,
+            publishers: 16,
+            subscribers: 2,
+        }
+    }
+}
+
+/// Who opens a service.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Open {
+    /// The daemon: opens or creates the service with these limits.
+    Serve(Limits),
+    /// A client: attaches to the service the daemon created (an error when there is none).
+    Attach,
+}
+
+/// Opens a publish-subscribe service `b` as `open` says.
+macro_rules! open_pub_sub {
+    ($b:expr, $open:expr, $what:literal) => {
+        match $open {
+            Open::Serve(l) => $b
+                .max_publishers(l.publishers)
+                .max_subscribers(l.subscribers)
+                .open_or_create()
+                .map_err(|e| format!(concat!($what, " service: {:?}"), e)),
+            Open::Attach => $b
+                .open()
+                .map_err(|e| format!(concat!($what, " service: {:?}"), e)),
+        }
+    };
+}
+
+/// Opens a request-response service `b` as `open` says.
+macro_rules! open_req_res {
+    ($b:expr, $open:expr, $what:literal) => {
+        match $open {
+            Open::Serve(l) => $b
+                .max_clients(l.clients)
+                .max_servers(1)
+                .open_or_create()
+                .map_err(|e| format!(concat!($what, " service: {:?}"), e)),
+            Open::Attach => $b
+                .open()
+                .map_err(|e| format!(concat!($what, " service: {:?}"), e)),
+        }
+    };
+}
+
 /// Opens (or creates) the cloud service of `instance`.
 pub fn cloud(
     node: &Node<ipc::Service>,
     instance: &str,
+    open: Open,
 ) -> Result<publish_subscribe::PortFactory<ipc::Service, [Point], CloudHeader>, String> {
     let name = ServiceName::new(&service(instance, "cloud")).map_err(|e| format!("{e:?}"))?;
-    node.service_builder(&name)
+    let b = node
+        .service_builder(&name)
         .publish_subscribe::<[Point]>()
         .user_header::<CloudHeader>()
-        .max_publishers(2)
-        .max_subscribers(2)
         .subscriber_max_buffer_size(2)
         .history_size(0)
-        .enable_safe_overflow(true)
-        .open_or_create()
-        .map_err(|e| format!("cloud service: {e:?}"))
+        .enable_safe_overflow(true);
+    open_pub_sub!(b, open, "cloud")
 }
 
 /// Opens (or creates) the object service of `instance`.
 pub fn objects(
     node: &Node<ipc::Service>,
     instance: &str,
+    open: Open,
 ) -> Result<publish_subscribe::PortFactory<ipc::Service, ObjectUpdate, ()>, String> {
     let name = ServiceName::new(&service(instance, "objects")).map_err(|e| format!("{e:?}"))?;
-    node.service_builder(&name)
+    let b = node
+        .service_builder(&name)
         .publish_subscribe::<ObjectUpdate>()
-        .max_publishers(8)
-        .max_subscribers(4)
         .subscriber_max_buffer_size(256)
-        .history_size(0)
-        .open_or_create()
-        .map_err(|e| format!("object service: {e:?}"))
+        .history_size(0);
+    open_pub_sub!(b, open, "object")
 }
 
 /// Opens (or creates) the joint-state service of `instance`.
 pub fn joints(
     node: &Node<ipc::Service>,
     instance: &str,
+    open: Open,
 ) -> Result<publish_subscribe::PortFactory<ipc::Service, JointState, ()>, String> {
     let name = ServiceName::new(&service(instance, "joints")).map_err(|e| format!("{e:?}"))?;
-    node.service_builder(&name)
+    let b = node
+        .service_builder(&name)
         .publish_subscribe::<JointState>()
-        .max_publishers(4)
-        .max_subscribers(4)
         .subscriber_max_buffer_size(16)
         .history_size(1)
-        .enable_safe_overflow(true)
-        .open_or_create()
-        .map_err(|e| format!("joint service: {e:?}"))
+        .enable_safe_overflow(true);
+    open_pub_sub!(b, open, "joint")
 }
 
 /// The plan service type.
@@ -72,31 +137,31 @@ pub type PlanService = request_response::PortFactory<
 >;
 
 /// Opens (or creates) the plan service of `instance`.
-pub fn plan(node: &Node<ipc::Service>, instance: &str) -> Result<PlanService, String> {
+pub fn plan(node: &Node<ipc::Service>, instance: &str, open: Open) -> Result<PlanService, String> {
     let name = ServiceName::new(&service(instance, "plan")).map_err(|e| format!("{e:?}"))?;
     let _ = MAX_PLAN_VALUES;
-    node.service_builder(&name)
+    let b = node
+        .service_builder(&name)
         .request_response::<[f64], [f64]>()
         .request_user_header::<PlanRequestHeader>()
         .response_user_header::<PlanResponseHeader>()
-        .max_clients(16)
-        .max_servers(1)
         .max_active_requests_per_client(2)
-        .max_response_buffer_size(2)
-        .open_or_create()
-        .map_err(|e| format!("plan service: {e:?}"))
+        .max_response_buffer_size(2);
+    open_req_res!(b, open, "plan")
 }
 
 /// The status service type.
 pub type StatusService = request_response::PortFactory<ipc::Service, u64, (), StatusReply, ()>;
 
 /// Opens (or creates) the status service of `instance`.
-pub fn status(node: &Node<ipc::Service>, instance: &str) -> Result<StatusService, String> {
+pub fn status(
+    node: &Node<ipc::Service>,
+    instance: &str,
+    open: Open,
+) -> Result<StatusService, String> {
     let name = ServiceName::new(&service(instance, "status")).map_err(|e| format!("{e:?}"))?;
-    node.service_builder(&name)
-        .request_response::<u64, StatusReply>()
-        .max_clients(16)
-        .max_servers(1)
-        .open_or_create()
-        .map_err(|e| format!("status service: {e:?}"))
+    let b = node
+        .service_builder(&name)
+        .request_response::<u64, StatusReply>();
+    open_req_res!(b, open, "status")
 }

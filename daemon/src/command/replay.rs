@@ -36,11 +36,12 @@ fn wait_taken(client: &Client, base: u64, sent: u64, ahead: u64) -> anyhow::Resu
 }
 
 pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
-    let client = Client::connect(&args.instance).map_err(|e| {
-        anyhow::anyhow!(
+    let client = Client::connect(&args.instance).map_err(|e| match e {
+        ember_sdk::ClientError::NoDaemon(_) => anyhow::anyhow!(
             "cannot reach the daemon: {e} (start it with `ember run --instance {}`)",
             args.instance
-        )
+        ),
+        e => anyhow::anyhow!("cannot attach to the daemon: {e}"),
     })?;
     let robot = super::load_robot(&args.robot.spec("fetch"))?;
     let topics = TopicMap::parse(&args.topic_map)?;

@@ -66,8 +66,9 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         .map_err(|e| anyhow::anyhow!("cannot create the iceoryx2 node: {e:?}"))?;
     // A daemon killed with SIGKILL leaves its resources behind: reclaim them before serving.
     let _ = node.try_cleanup_dead_nodes();
-    let plans = PlanPort::open(&node, &config.instance, robot.dof())?;
-    let status = StatusPort::open(&node, &config.instance)?;
+    let limits = config.limits.get();
+    let plans = PlanPort::open(&node, &config.instance, limits, robot.dof())?;
+    let status = StatusPort::open(&node, &config.instance, limits)?;
 
     let (mut experience, set_aside) = Experience::load_dir(
         &config.experience.db_dir,

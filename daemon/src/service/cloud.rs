@@ -4,7 +4,7 @@
 use super::rejection::Rejection;
 use ember_engine::scene::pose_from_xyz_xyzw;
 use ember_engine::Pose;
-use ember_sdk::services;
+use ember_sdk::services::{self, Limits, Open};
 use ember_sdk::wire::{self, CloudHeader, Point};
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
@@ -34,8 +34,8 @@ pub struct CloudPort(Subscriber<ipc::Service, [Point], CloudHeader>);
 
 impl CloudPort {
     /// Subscribes to the instance's clouds.
-    pub fn open(node: &Node<ipc::Service>, instance: &str) -> anyhow::Result<Self> {
-        let sub = services::cloud(node, instance)
+    pub fn open(node: &Node<ipc::Service>, instance: &str, limits: Limits) -> anyhow::Result<Self> {
+        let sub = services::cloud(node, instance, Open::Serve(limits))
             .map_err(anyhow::Error::msg)?
             .subscriber_builder()
             .create()

@@ -42,9 +42,10 @@ impl Ingest {
             .create::<ipc::Service>()
             .map_err(|e| anyhow::anyhow!("ingest node: {e:?}"))?;
         let instance = &self.config.instance;
-        let clouds = CloudPort::open(&node, instance)?;
-        let objects = ObjectsPort::open(&node, instance)?;
-        let joints = JointsPort::open(&node, instance)?;
+        let limits = self.config.limits.get();
+        let clouds = CloudPort::open(&node, instance, limits)?;
+        let objects = ObjectsPort::open(&node, instance, limits)?;
+        let joints = JointsPort::open(&node, instance, limits)?;
         let mut world = World::new(&self.config);
         let _ = ready.send(());
         while !self.stop.load(Ordering::Relaxed) {

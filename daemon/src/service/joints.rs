@@ -2,7 +2,7 @@
 
 use super::rejection::Rejection;
 use ember_engine::robot::Robot;
-use ember_sdk::services;
+use ember_sdk::services::{self, Limits, Open};
 use ember_sdk::wire::JointState;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
@@ -20,8 +20,8 @@ pub struct JointsPort(Subscriber<ipc::Service, JointState, ()>);
 
 impl JointsPort {
     /// Subscribes to the instance's joint states.
-    pub fn open(node: &Node<ipc::Service>, instance: &str) -> anyhow::Result<Self> {
-        let sub = services::joints(node, instance)
+    pub fn open(node: &Node<ipc::Service>, instance: &str, limits: Limits) -> anyhow::Result<Self> {
+        let sub = services::joints(node, instance, Open::Serve(limits))
             .map_err(anyhow::Error::msg)?
             .subscriber_builder()
             .create()

@@ -6,7 +6,7 @@ use ember_engine::collision::Shape;
 use ember_engine::scene::pose_from_xyz_xyzw;
 use ember_engine::world::Object;
 use ember_sdk::client::now_ns;
-use ember_sdk::services;
+use ember_sdk::services::{self, Limits, Open};
 use ember_sdk::wire::{self, ShapeKind, PROTOCOL_VERSION};
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
@@ -24,8 +24,8 @@ pub struct ObjectsPort(Subscriber<ipc::Service, wire::ObjectUpdate, ()>);
 
 impl ObjectsPort {
     /// Subscribes to the instance's object updates.
-    pub fn open(node: &Node<ipc::Service>, instance: &str) -> anyhow::Result<Self> {
-        let sub = services::objects(node, instance)
+    pub fn open(node: &Node<ipc::Service>, instance: &str, limits: Limits) -> anyhow::Result<Self> {
+        let sub = services::objects(node, instance, Open::Serve(limits))
             .map_err(anyhow::Error::msg)?
             .subscriber_builder()
             .create()

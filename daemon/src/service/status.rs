@@ -2,7 +2,7 @@
 //! monitor publishes.
 
 use crate::monitor::docs::Sources;
-use ember_sdk::services;
+use ember_sdk::services::{self, Limits, Open};
 use ember_sdk::wire::StatusReply;
 use iceoryx2::port::server::Server;
 use iceoryx2::prelude::*;
@@ -13,8 +13,8 @@ pub struct StatusPort(Server<ipc::Service, u64, (), StatusReply, ()>);
 
 impl StatusPort {
     /// Serves the instance's status requests.
-    pub fn open(node: &Node<ipc::Service>, instance: &str) -> anyhow::Result<Self> {
-        let server = services::status(node, instance)
+    pub fn open(node: &Node<ipc::Service>, instance: &str, limits: Limits) -> anyhow::Result<Self> {
+        let server = services::status(node, instance, Open::Serve(limits))
             .map_err(anyhow::Error::msg)?
             .server_builder()
             .create()

@@ -556,3 +556,84 @@ fn a_corrupt_database_is_set_aside_and_the_daemon_serves() {
         .unwrap();
     assert_eq!(r.status, Status::Ok, "{}", r.message());
 }
+
+#[test]
+fn many_clients_publish_and_plan_at_once() {
+    let d = Daemon::start("many");
+    let watcher = d.client();
+    // Six clients at once: three times what the cloud service used to admit.
+    std::thread::scope(|s| {
+        for i in 0..6u64 {
+            let d = &d;
+            s.spawn(move || {
+                let c = d.client();
+                c.publish_cloud("cam", [0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0], 0, 100, |k| {
+                    Point {
+                        x: 1.5,
+                        y: k as f32 * 0.01,
+                        z: 0.2,
+                    }
+                })
+                .unwrap();
+                let r = c
+                    .plan(
+                        &uniform_call(FREE_GOAL.to_vec(), i),
+                        Duration::from_secs(30),
+                    )
+                    .unwrap();
+                assert_eq!(r.status, Status::Ok, "client {i}: {}", r.message());
+            });
+        }
+    });
+    wait_for(&watcher, "clouds", |s| s.clouds >= 1 && s.plans == 6);
+}
+
+#[test]
+fn a_client_beyond_the_limit_is_told_which_limit() {
+    let dir = std::env::temp_dir().join(format!("ember-limits-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let config = dir.join("emberd.toml");
+    std::fs::write(&config, "[limits]\npublishers = 2\nclients = 3\n").unwrap();
+    let d = Daemon::start_args(
+        "limits",
+        &["--no-monitor", "--config", config.to_str().unwrap()],
+    );
+    let (_a, _b) = (d.client(), d.client());
+    let e = match Client::connect(&d.instance) {
+        Err(e) => e,
+        Ok(_) => panic!("a third client attached past publishers = 2"),
+    };
+    assert!(
+        matches!(
+            e,
+            ember_sdk::ClientError::LimitReached {
+                service: "cloud",
+                kind: "publishers",
+                max: 2
+            }
+        ),
+        "{e}"
+    );
+    assert!(e.to_string().contains("limits.publishers"), "{e}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn a_client_without_a_daemon_is_told_so_and_creates_nothing() {
+    let instance = format!("it-nobody-{}", std::process::id());
+    for _ in 0..2 {
+        let e = match Client::connect(&instance) {
+            Err(e) => e,
+            Ok(_) => panic!("connected to a daemon that does not exist"),
+        };
+        assert!(matches!(e, ember_sdk::ClientError::NoDaemon(_)), "{e}");
+    }
+    // The services were not created by the client: a daemon then starts with its own limits.
+    let d = Daemon::start_with(
+        instance.clone(),
+        std::env::temp_dir().join(format!("ember-db-{instance}")),
+        &["--no-monitor"],
+    );
+    let c = d.client();
+    assert!(c.status(Duration::from_secs(2)).is_ok());
+}

@@ -16,7 +16,7 @@ use ember_engine::experience::Experience;
 use ember_engine::robot::Robot;
 use ember_sdk::client::now_ns;
 use ember_sdk::recording::{self, Event};
-use ember_sdk::services;
+use ember_sdk::services::{self, Limits, Open};
 use ember_sdk::wire::{PlanRequestHeader, PlanResponseHeader};
 use iceoryx2::port::server::Server;
 use iceoryx2::prelude::*;
@@ -45,8 +45,13 @@ pub struct PlanPort(Server<ipc::Service, [f64], PlanRequestHeader, [f64], PlanRe
 impl PlanPort {
     /// Serves the instance's plan requests (configurations of `dof` joints); fails when another
     /// daemon serves the instance.
-    pub fn open(node: &Node<ipc::Service>, instance: &str, dof: usize) -> anyhow::Result<Self> {
-        let server = services::plan(node, instance)
+    pub fn open(
+        node: &Node<ipc::Service>,
+        instance: &str,
+        limits: Limits,
+        dof: usize,
+    ) -> anyhow::Result<Self> {
+        let server = services::plan(node, instance, Open::Serve(limits))
             .map_err(anyhow::Error::msg)?
             .server_builder()
             .initial_max_slice_len(dof * 64)
