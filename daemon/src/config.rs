@@ -7,6 +7,13 @@ use std::path::{Path, PathBuf};
 /// The most ports of one kind a service may admit (each costs shared memory).
 const MAX_PORTS: usize = 256;
 
+/// The longest queue (records, plan summaries) the config may ask for: each entry can hold a
+/// cloud, so more would let one key exhaust memory.
+const MAX_QUEUE: usize = 100_000;
+
+/// The fastest status publication the config may ask for, Hz.
+const MAX_STATUS_HZ: f64 = 100.0;
+
 /// The embedded default configuration.
 pub const DEFAULT_TOML: &str = include_str!("../../config/emberd.toml");
 
@@ -96,10 +103,25 @@ pub struct MapConfig {
     pub discretize: bool,
 }
 
+impl MapConfig {
+    /// The largest object dimension or distance from the base accepted: ten times the farthest
+    /// bound of the map, metres.
+    pub fn max_object_extent(&self) -> f64 {
+        let far = self
+            .bounds_min
+            .iter()
+            .chain(&self.bounds_max)
+            .fold(0.0f64, |m, v| m.max(v.abs()));
+        10.0 * far
+    }
+}
+
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PlannerConfig {
     pub default_time_limit_s: f64,
+    /// Requests asking for more are refused (`bad_request` naming the cap).
+    pub max_time_limit_s: f64,
     pub range: f64,
     pub simplify: bool,
     pub use_map: bool,
@@ -208,6 +230,13 @@ impl Config {
             "planner.default_time_limit_s",
             self.planner.default_time_limit_s,
         )?;
+        positive("planner.max_time_limit_s", self.planner.max_time_limit_s)?;
+        if self.planner.default_time_limit_s > self.planner.max_time_limit_s {
+            return Err(format!(
+                "key planner.default_time_limit_s ({}) must not exceed planner.max_time_limit_s ({})",
+                self.planner.default_time_limit_s, self.planner.max_time_limit_s
+            ));
+        }
         positive("planner.range", self.planner.range)?;
         positive("experience.save_every_s", self.experience.save_every_s)?;
         positive("record.max_file_mb", self.record.max_file_mb)?;
@@ -222,12 +251,20 @@ impl Config {
                     self.monitor.mode
                 ));
             }
-            if self.monitor.queue == 0 {
-                return Err("key monitor.queue must be at least 1".into());
+        }
+        for (key, v, max) in [
+            ("record.queue", self.record.queue, MAX_QUEUE),
+            ("monitor.queue", self.monitor.queue, MAX_QUEUE),
+        ] {
+            if !(1..=max).contains(&v) {
+                return Err(format!("key {key} must be 1 to {max}, got {v}"));
             }
         }
-        if self.record.queue == 0 {
-            return Err("key record.queue must be at least 1".into());
+        if self.monitor.status_hz > MAX_STATUS_HZ {
+            return Err(format!(
+                "key monitor.status_hz must be at most {MAX_STATUS_HZ}, got {}",
+                self.monitor.status_hz
+            ));
         }
         if self.map.self_filter_padding.is_nan() || self.map.self_filter_padding < 0.0 {
             return Err("key map.self_filter_padding must be >= 0".into());

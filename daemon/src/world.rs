@@ -8,7 +8,7 @@ use ember_engine::experience::ExperienceParams;
 use ember_engine::robot::spheres::PlacedSpheres;
 use ember_engine::robot::Robot;
 use ember_engine::scene::Scene;
-use ember_engine::world::map::{MapParams, OccupancyMap};
+use ember_engine::world::map::{InsertReport, MapParams, OccupancyMap};
 use ember_engine::world::{Environment, Object};
 use std::sync::Arc;
 
@@ -98,14 +98,14 @@ impl World {
         self.joints = Some(q);
     }
 
-    /// Folds a cloud into the map, dropping the robot's own points at the latest joint state;
-    /// returns the number of octoboxes whose mask changed.
+    /// Folds a cloud into the map, dropping the robot's own points at the latest joint state
+    /// (and non-finite ones); says what was folded in.
     pub fn insert_cloud(
         &mut self,
         robot: &Robot,
         points: &[[f32; 3]],
         sensor_pose: &ember_engine::Pose,
-    ) -> usize {
+    ) -> InsertReport {
         let filter = self
             .joints
             .as_ref()
@@ -116,7 +116,7 @@ impl World {
         if !report.changed.is_empty() {
             self.octoboxes = Arc::new(octoboxes(map));
         }
-        report.changed.len()
+        report
     }
 
     /// A snapshot of the current state.

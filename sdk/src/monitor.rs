@@ -116,6 +116,9 @@ pub struct InputsDoc {
     pub cloud_latency_p99_us: f64,
     /// Stamp of the last cloud, ns since the Unix epoch (0: none yet).
     pub last_cloud_stamp_ns: u64,
+    /// Cloud points dropped because a coordinate was NaN or infinite (no-return pixels of
+    /// depth cameras; the rest of the cloud is used).
+    pub invalid_points: u64,
 }
 
 /// The occupancy map's size.

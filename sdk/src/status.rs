@@ -30,6 +30,8 @@ pub enum Status {
     UnknownLink = 11,
     /// The daemon failed internally; the request may be retried.
     Internal = 12,
+    /// The plan was cancelled before it finished (the daemon is stopping).
+    Cancelled = 13,
 }
 
 impl Status {
@@ -50,6 +52,7 @@ impl Status {
             BadRequest,
             UnknownLink,
             Internal,
+            Cancelled,
         ]
         .into_iter()
         .find(|s| *s as u32 == code)
@@ -72,6 +75,7 @@ impl Status {
             BadRequest => "bad_request",
             UnknownLink => "unknown_link",
             Internal => "internal",
+            Cancelled => "cancelled",
         }
     }
 }

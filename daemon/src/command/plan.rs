@@ -25,6 +25,11 @@ pub fn run(args: PlanArgs) -> anyhow::Result<ExitCode> {
         .time_limit
         .or(request.allowed_planning_time)
         .unwrap_or(10.0);
+    let max = ember_engine::scene::moveit::MAX_PLANNING_TIME_S;
+    anyhow::ensure!(
+        time_limit > 0.0 && time_limit <= max,
+        "--time-limit must be in (0, {max}] s, got {time_limit}"
+    );
     let timing = (!args.no_trajectory).then_some(TimingParams {
         velocity_scaling: args.velocity_scaling.or(request.scaling.0).unwrap_or(1.0),
         acceleration_scaling: args
@@ -40,7 +45,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<ExitCode> {
         goal: request.goal,
         params: PlannerParams {
             seed: args.seed,
-            time_limit: Duration::from_secs_f64(time_limit.max(0.0)),
+            time_limit: Duration::from_secs_f64(time_limit),
             simplify: !args.no_simplify,
             timing,
             ..Default::default()

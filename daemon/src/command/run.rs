@@ -12,6 +12,7 @@ use crate::service::status::StatusPort;
 use crate::service::{SnapshotCell, Stats};
 use crate::world::World;
 use ember_engine::experience::{Database, Experience, ExperienceParams};
+use ember_engine::planning::Cancel;
 use ember_sdk::launch::Ready;
 use iceoryx2::prelude::*;
 use std::process::ExitCode;
@@ -27,6 +28,27 @@ fn save(config: &Config, experience: &mut Experience) {
         Ok(()) => info!("experience saved in {}", dir.display()),
         Err(e) => error!("saving the experience database failed: {e}"),
     }
+}
+
+/// A thread that sets `terminate` when SIGINT/SIGTERM arrive (iceoryx2's handler records them;
+/// a node's wait reports them), until `stop` is set.
+fn watch_termination(
+    terminate: Arc<AtomicBool>,
+    stop: Arc<AtomicBool>,
+) -> anyhow::Result<std::thread::JoinHandle<()>> {
+    Ok(std::thread::Builder::new()
+        .name("signals".into())
+        .spawn(move || {
+            let Ok(node) = NodeBuilder::new().create::<ipc::Service>() else {
+                return;
+            };
+            while !stop.load(Ordering::Relaxed) {
+                if node.wait(Duration::from_millis(10)).is_err() {
+                    terminate.store(true, Ordering::Relaxed);
+                    return;
+                }
+            }
+        })?)
 }
 
 /// The configuration with the command line's overrides.
@@ -148,6 +170,10 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     use std::io::Write;
     std::io::stdout().flush().ok();
 
+    // SIGINT/SIGTERM while a plan runs: the watcher sets the flag the plan reads, so the plan
+    // ends as `cancelled` within milliseconds and the loop below stops.
+    let terminate = Arc::new(AtomicBool::new(false));
+    let watcher = watch_termination(terminate.clone(), stop.clone())?;
     let cx = PlanContext {
         config: &config,
         robot: &robot,
@@ -155,6 +181,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         stats: &stats,
         recorder: recorder.as_ref(),
         monitor: monitor.as_ref(),
+        cancel: Cancel::new(terminate.clone()),
     };
     // Poll without sleeping for a while after each request (a client streaming requests gets
     // them picked up within microseconds), then sleep in short waits.
@@ -166,7 +193,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         } else {
             Duration::from_micros(50)
         };
-        if node.wait(wait).is_err() {
+        if node.wait(wait).is_err() || terminate.load(Ordering::Relaxed) {
             info!("termination requested");
             break;
         }
@@ -185,6 +212,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         }
     }
     stop.store(true, Ordering::Relaxed);
+    let _ = watcher.join();
     match ingest.join() {
         Ok(Err(e)) => error!("ingest stopped with an error: {e:#}"),
         Err(_) => error!("ingest thread panicked"),

@@ -47,6 +47,7 @@ impl Ingest {
         let objects = ObjectsPort::open(&node, instance, limits)?;
         let joints = JointsPort::open(&node, instance, limits)?;
         let mut world = World::new(&self.config);
+        let max_extent = self.config.map.max_object_extent();
         let _ = ready.send(());
         while !self.stop.load(Ordering::Relaxed) {
             let mut changed = false;
@@ -77,7 +78,7 @@ impl Ingest {
                     Err(why) => self.stats.rejected(&why),
                 }
             }
-            while let Some((update, input)) = objects.receive() {
+            while let Some((update, input)) = objects.receive(max_extent) {
                 // Recorded as received, whether or not it applies.
                 if update.version == wire::PROTOCOL_VERSION {
                     self.record(now_ns(), Event::Object(update));
@@ -105,7 +106,7 @@ impl Ingest {
                 Some(Ok(cloud)) => {
                     let h = *cloud.header();
                     let recv_ns = now_ns();
-                    world.insert_cloud(&self.robot, cloud.points(), &cloud.pose);
+                    let report = world.insert_cloud(&self.robot, cloud.points(), &cloud.pose);
                     self.record(
                         recv_ns,
                         Event::Cloud {
@@ -117,6 +118,7 @@ impl Ingest {
                     );
                     let mut st = self.stats.inner.lock().expect("stats lock");
                     st.inputs.clouds += 1;
+                    st.inputs.invalid_points += report.invalid as u64;
                     st.inputs.last_cloud_stamp_ns = h.stamp_ns;
                     st.cloud_latency_us
                         .push(recv_ns.saturating_sub(h.stamp_ns) as f64 / 1e3);

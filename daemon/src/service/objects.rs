@@ -33,20 +33,33 @@ impl ObjectsPort {
         Ok(ObjectsPort(sub))
     }
 
-    /// The next waiting update as received (for the recording) and decoded; None when none
-    /// waits.
-    pub fn receive(&self) -> Option<(wire::ObjectUpdate, Result<ObjectInput, Rejection>)> {
+    /// The next waiting update as received (for the recording) and decoded (objects reaching
+    /// farther than `max_extent` metres refused); None when none waits.
+    pub fn receive(
+        &self,
+        max_extent: f64,
+    ) -> Option<(wire::ObjectUpdate, Result<ObjectInput, Rejection>)> {
         let s = self.0.receive().ok().flatten()?;
         let u = *s.payload();
-        Some((u, decode(&u)))
+        Some((u, decode(&u, max_extent)))
     }
 }
 
-/// Decodes an update.
-pub fn decode(u: &wire::ObjectUpdate) -> Result<ObjectInput, Rejection> {
+/// Decodes an update; an object larger than `max_extent` or centred farther than it from the
+/// base is refused.
+pub fn decode(u: &wire::ObjectUpdate, max_extent: f64) -> Result<ObjectInput, Rejection> {
     Rejection::check_version("object update", u.version)?;
     Ok(match object_of(u)? {
-        Some(o) => ObjectInput::Upsert(o),
+        Some(o) => {
+            let far = o.pose.translation.vector.norm();
+            if u.dims.iter().any(|d| d.abs() > max_extent) || far > max_extent {
+                return Err(Rejection::ObjectExtent {
+                    id: o.name,
+                    limit: max_extent,
+                });
+            }
+            ObjectInput::Upsert(o)
+        }
         None => ObjectInput::Remove(wire::name_str(&u.id)),
     })
 }

@@ -60,6 +60,16 @@ pub enum Rejection {
     /// A NaN or infinite number in a request.
     #[error("the request holds a NaN or infinite number")]
     NotFinite,
+    /// A time limit above the daemon's cap.
+    #[error(
+        "time limit {requested} s exceeds the daemon's cap (planner.max_time_limit_s = {cap} s)"
+    )]
+    TimeLimit {
+        /// The limit asked for, seconds.
+        requested: f64,
+        /// `planner.max_time_limit_s`.
+        cap: f64,
+    },
     /// Trajectory settings out of range.
     #[error("{0}")]
     Timing(String),
@@ -93,6 +103,14 @@ pub enum Rejection {
         id: String,
         /// The dimensions sent.
         dims: [f64; 3],
+    },
+    /// An object larger, or farther from the base, than ten times the map's bounds.
+    #[error("object '{id}': dimensions or position beyond {limit} m (ten times the map bounds)")]
+    ObjectExtent {
+        /// Object name.
+        id: String,
+        /// The largest dimension or distance accepted, metres.
+        limit: f64,
     },
     /// An object pose whose quaternion is zero.
     #[error("object '{0}': zero quaternion")]

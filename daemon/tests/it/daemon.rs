@@ -384,7 +384,16 @@ fn every_bad_input_gets_its_own_status_and_the_daemon_keeps_serving() {
         )
         .unwrap();
     client.publish_joints(&[0.0; 5]).unwrap();
-    wait_for(&client, "rejections", |s| s.rejected == before + 4);
+    // An absurd object: a 1e300 m box (beyond ten times the map bounds).
+    client
+        .publish_object(
+            "huge",
+            ShapeKind::Box,
+            [1e300, 1.0, 1.0],
+            [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
+        )
+        .unwrap();
+    wait_for(&client, "rejections", |s| s.rejected == before + 5);
 
     // And it still plans.
     assert_eq!(status(header, &good), Status::Ok);
@@ -490,6 +499,14 @@ fn bad_config_key_is_named() {
         ("[map]\nresolution = -0.02\n", "map.resolution"),
         ("[planner]\nrange_typo = 1.0\n", "range_typo"),
         ("[monitor]\nmode = \"router-ish\"\n", "monitor.mode"),
+        // Values that would exhaust memory or a core are refused, not obeyed.
+        ("[record]\nqueue = 100000000000\n", "record.queue"),
+        ("[monitor]\nstatus_hz = 1e9\n", "monitor.status_hz"),
+        ("[limits]\npublishers = 0\n", "limits.publishers"),
+        (
+            "[planner]\ndefault_time_limit_s = 60.0\n",
+            "planner.default_time_limit_s",
+        ),
     ] {
         std::fs::write(&cfg, text).unwrap();
         let out = Command::new(env!("CARGO_BIN_EXE_ember"))

@@ -148,8 +148,9 @@ fn a_watcher_sees_status_plans_objects_map_and_liveliness() {
             [0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
             ember_sdk::client::now_ns(),
             100 * 100,
+            // Every hundredth point has no return (NaN), as depth cameras send them.
             |i| Point {
-                x: 1.5,
+                x: if i % 100 == 7 { f32::NAN } else { 1.5 },
                 y: -0.5 + (i % 100) as f32 * 0.01,
                 z: -0.5 + (i / 100) as f32 * 0.01,
             },
@@ -183,6 +184,8 @@ fn a_watcher_sees_status_plans_objects_map_and_liveliness() {
     );
     let docs: Vec<StatusDoc> = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(docs.len(), 1);
+    // The no-return points were dropped and counted; the rest of the cloud was used.
+    assert_eq!(docs[0].inputs.invalid_points, 100);
     assert_eq!(
         (docs[0].instance.as_str(), docs[0].inputs.clouds),
         (d.instance.as_str(), 1)

@@ -67,11 +67,13 @@ impl Experience {
     /// starts empty with `params` / `map_resolution`; a file that cannot be loaded (corrupt,
     /// truncated, foreign, newer) is moved aside beside itself — never overwritten — and starts
     /// empty too, and is listed in the second value. Fails only when it cannot be moved.
+    /// Temporary files that a process killed mid-save left behind are removed.
     pub fn load_dir(
         dir: &Path,
         params: &ExperienceParams,
         map_resolution: f64,
     ) -> Result<(Self, Vec<SetAside>), DbError> {
+        remove_stale_temporaries(dir);
         let mut set_aside = Vec::new();
         let spark = load_or_new(dir, &mut set_aside, || SparkDb::new(params.clone()))?;
         let flame = load_or_new(dir, &mut set_aside, || {
@@ -128,6 +130,27 @@ impl Experience {
             Method::Flame => (self.flame.retrieve(octoboxes), self.flame.params()),
         };
         GlobalSampler::new(retrieval, params.sigma, params.lambda)
+    }
+}
+
+/// Removes `.<file>.tmp-<pid>` files (see [`file`](super::file)'s atomic save) whose process is
+/// gone (Linux: no `/proc/<pid>`); elsewhere they are left alone.
+fn remove_stale_temporaries(dir: &Path) {
+    if !Path::new("/proc/self").exists() {
+        return;
+    }
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let name = e.file_name().to_string_lossy().to_string();
+        let pid = [SparkDb::FILE_NAME, FlameDb::FILE_NAME]
+            .iter()
+            .find_map(|f| name.strip_prefix(&format!(".{f}.tmp-")))
+            .and_then(|p| p.parse::<u32>().ok());
+        if pid.is_some_and(|p| !Path::new(&format!("/proc/{p}")).exists()) {
+            let _ = std::fs::remove_file(e.path());
+        }
     }
 }
 

@@ -29,6 +29,8 @@ use crate::trajectory::{TimingParams, Trajectory, TrajectoryError};
 use crate::world::Environment;
 use crate::Pose;
 use rand::SeedableRng;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 use thiserror::Error;
 use validity::Validity;
@@ -79,6 +81,37 @@ pub struct PlannerParams {
     pub exact_radius: f64,
     /// Time the returned path under the robot's joint limits (`None`: the path only).
     pub timing: Option<TimingParams>,
+    /// Set from elsewhere to stop the search (it ends with [`PlanError::Cancelled`]).
+    pub cancel: Cancel,
+}
+
+/// A flag another thread sets to cancel plans in flight; the search looks at it as often as at
+/// its clock. The default is never set.
+#[derive(Debug, Clone, Default)]
+pub struct Cancel(Option<Arc<AtomicBool>>);
+
+impl Cancel {
+    /// A token that reads `flag`.
+    pub fn new(flag: Arc<AtomicBool>) -> Self {
+        Cancel(Some(flag))
+    }
+
+    /// True once the flag is set.
+    #[inline]
+    pub fn is_set(&self) -> bool {
+        self.0.as_ref().is_some_and(|f| f.load(Ordering::Relaxed))
+    }
+}
+
+impl PartialEq for Cancel {
+    /// Tokens are equal when they read the same flag (or none).
+    fn eq(&self, other: &Cancel) -> bool {
+        match (&self.0, &other.0) {
+            (Some(a), Some(b)) => Arc::ptr_eq(a, b),
+            (None, None) => true,
+            _ => false,
+        }
+    }
 }
 
 impl Default for PlannerParams {
@@ -94,6 +127,7 @@ impl Default for PlannerParams {
             exact_radius: 0.75,
             dynamic_domain: Some(rrt_connect::DynamicDomain::default()),
             timing: None,
+            cancel: Cancel::default(),
         }
     }
 }
@@ -141,6 +175,12 @@ pub enum PlanError {
     /// The timing parameters are out of range.
     #[error("invalid timing: {0}")]
     InvalidTiming(TrajectoryError),
+    /// The search was cancelled (see [`Cancel`]).
+    #[error("cancelled after {iterations} iterations")]
+    Cancelled {
+        /// Iterations run.
+        iterations: u64,
+    },
     /// The search ran out of time or iterations.
     #[error("no path found within {iterations} iterations and {elapsed_ms:.1} ms")]
     Timeout {
@@ -164,6 +204,7 @@ impl PlanError {
             PlanError::InvalidPath(_) => "invalid_path",
             PlanError::InvalidTiming(_) => "invalid_timing",
             PlanError::Timeout { .. } => "timeout",
+            PlanError::Cancelled { .. } => "cancelled",
         }
     }
 }

@@ -265,6 +265,12 @@ pub(crate) fn search(
     let mut target = vec![0.0; dof];
     let mut iterations = 0u64;
     loop {
+        if iterations.is_multiple_of(16) && params.cancel.is_set() {
+            search.phases.finish(t0, search.stats);
+            search.stats.iterations = iterations;
+            search.stats.tree_nodes = (start_tree.len() + goal_tree.len()) as u64;
+            return Err(PlanError::Cancelled { iterations });
+        }
         if iterations >= params.max_iterations
             || (iterations.is_multiple_of(16) && t0.elapsed() >= params.time_limit)
         {

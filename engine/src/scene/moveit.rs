@@ -380,7 +380,16 @@ pub fn request_from_yaml(
         start_joints,
         goal,
         allowed_planning_time: match root.opt("allowed_planning_time") {
-            Some(n) => Some(n.f64()?),
+            Some(n) => {
+                let v = n.f64()?;
+                // A planner cannot run for ever, nor for a negative time.
+                if !(v > 0.0 && v <= MAX_PLANNING_TIME_S) {
+                    return Err(n.err(format!(
+                        "allowed_planning_time must be in (0, {MAX_PLANNING_TIME_S}] s, got {v}"
+                    )));
+                }
+                Some(v)
+            }
             None => None,
         },
         scaling: (
@@ -389,6 +398,9 @@ pub fn request_from_yaml(
         ),
     })
 }
+
+/// The longest `allowed_planning_time` accepted, seconds (a day).
+pub const MAX_PLANNING_TIME_S: f64 = 86_400.0;
 
 fn scaling_factor(root: &Node, key: &str) -> Result<Option<f64>, SceneError> {
     match root.opt(key) {

@@ -468,6 +468,15 @@ fn an_experience_folder_loads_saves_and_sets_bad_files_aside() {
     assert_eq!(back.spark.samplers(), spark.samplers());
     assert_eq!(back.flame.samplers(), flame.samplers());
     assert_eq!(back.default_method(), Method::Spark);
+    // What a save killed midway leaves behind is removed when its process is gone (not while
+    // it lives: ours stays).
+    let stale = dir.join(".spark.emberdb.tmp-4000000000");
+    let live = dir.join(format!(".flame.emberdb.tmp-{}", std::process::id()));
+    std::fs::write(&stale, b"half").unwrap();
+    std::fs::write(&live, b"half").unwrap();
+    Experience::load_dir(&dir, &params, 0.02).unwrap();
+    assert!(!stale.exists() && live.exists());
+    std::fs::remove_file(&live).unwrap();
     // A corrupt SPARK file is moved aside (kept, not overwritten); FLAME still loads.
     let [spark_file, _] = Experience::files(&dir);
     let mut bytes = std::fs::read(&spark_file).unwrap();

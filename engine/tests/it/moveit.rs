@@ -109,6 +109,18 @@ fn joint_request_picks_the_group_joints() {
     let again = moveit::request_from_yaml(&text, "again", &robot).unwrap();
     assert_eq!(again.start, sut.start);
     assert_eq!(again.goal, sut.goal);
+    // A planning time no planner can honour is refused with the key named.
+    for bad in ["1e308", "-5", "0", ".nan"] {
+        let text = read("request_joint.yaml").replace(
+            "allowed_planning_time: 60",
+            &format!("allowed_planning_time: {bad}"),
+        );
+        let e = moveit::request_from_yaml(&text, "bad.yaml", &robot).unwrap_err();
+        assert!(
+            e.to_string().contains("allowed_planning_time"),
+            "{bad}: {e}"
+        );
+    }
 }
 
 #[test]

@@ -244,3 +244,23 @@ fn iteration_limit_gives_a_timeout() {
         other => panic!("expected a timeout, got {other:?}"),
     }
 }
+
+#[test]
+fn a_set_cancel_flag_stops_the_search() {
+    let robot = Robot::builtin("fetch").unwrap();
+    let env = table_scene();
+    let flag = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let mut req = request(
+        robot.named_state("tuck").unwrap().to_vec(),
+        Goal::Joints(vec![vec![0.3, 0.2, -0.6, 0.0, 0.6, 0.0, 0.0, 0.0]]),
+        1,
+    );
+    req.params.cancel = planning::Cancel::new(flag.clone());
+    // Not set: the plan runs as usual.
+    assert!(planning::plan(&robot, &env, &req, &mut UniformSampler).is_ok());
+    flag.store(true, std::sync::atomic::Ordering::Relaxed);
+    match planning::plan(&robot, &env, &req, &mut UniformSampler) {
+        Err(e @ PlanError::Cancelled { iterations: 0 }) => assert_eq!(e.kind(), "cancelled"),
+        other => panic!("expected a cancelled plan, got {other:?}"),
+    }
+}

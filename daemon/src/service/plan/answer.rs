@@ -6,7 +6,7 @@ use crate::config::Config;
 use crate::service::SnapshotCell;
 use crate::world::Snapshot;
 use ember_engine::experience::Experience;
-use ember_engine::planning::{self, PlanError};
+use ember_engine::planning::{self, Cancel, PlanError};
 use ember_engine::robot::{ConfigError, Robot};
 use ember_engine::trajectory::Trajectory;
 use ember_sdk::recording::{self, Event};
@@ -67,6 +67,7 @@ fn status_of(e: &PlanError) -> Status {
         PlanError::UnknownLink(_) => Status::UnknownLink,
         PlanError::UnreachablePose { .. } => Status::UnreachablePose,
         PlanError::Timeout { .. } => Status::Timeout,
+        PlanError::Cancelled { .. } => Status::Cancelled,
         PlanError::InvalidPath(_) => Status::Internal,
         PlanError::InvalidTiming(_) => Status::BadRequest,
     }
@@ -95,14 +96,16 @@ pub fn answer(
     robot: &Robot,
     snapshot: &SnapshotCell,
     experience: &Experience,
+    cancel: &Cancel,
     h: &PlanRequestHeader,
     values: &[f64],
 ) -> (Answer, Option<Lesson>) {
     let t0 = Instant::now();
-    let d = match decode(config, robot, experience.default_method(), h, values) {
+    let mut d = match decode(config, robot, experience.default_method(), h, values) {
         Ok(d) => d,
         Err(why) => return (fail(why.status(), why.to_string()), None),
     };
+    d.request.params.cancel = cancel.clone();
     let snap = snapshot.lock().expect("snapshot lock").clone();
     let t_ret = Instant::now();
     let mut sampler = experience.sampler_for(d.method, &snap.pairs, &snap.octoboxes);

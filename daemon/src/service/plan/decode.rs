@@ -131,6 +131,13 @@ pub fn decode(
             })
         }
     };
+    let cap = config.planner.max_time_limit_s;
+    if h.time_limit_s > cap {
+        return Err(Rejection::TimeLimit {
+            requested: h.time_limit_s,
+            cap,
+        });
+    }
     let time_limit = if h.time_limit_s > 0.0 {
         h.time_limit_s
     } else {
@@ -143,7 +150,7 @@ pub fn decode(
             goal,
             params: PlannerParams {
                 seed: h.seed,
-                time_limit: Duration::from_secs_f64(time_limit.min(3600.0)),
+                time_limit: Duration::from_secs_f64(time_limit),
                 range: config.planner.range,
                 simplify: config.planner.simplify,
                 timing,
@@ -217,6 +224,13 @@ mod tests {
             }
         ));
         assert_eq!(with(&|h| h.time_limit_s = f64::NAN), Rejection::NotFinite);
+        assert_eq!(
+            with(&|h| h.time_limit_s = 60.0),
+            Rejection::TimeLimit {
+                requested: 60.0,
+                cap: 10.0
+            }
+        );
         assert_eq!(
             with(&|h| h.goal_kind = GoalKind::Pose as u32),
             Rejection::PayloadLength {

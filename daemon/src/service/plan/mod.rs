@@ -13,6 +13,7 @@ use crate::monitor::docs::plan_summary;
 use crate::monitor::Monitor;
 use crate::recorder::Recorder;
 use ember_engine::experience::Experience;
+use ember_engine::planning::Cancel;
 use ember_engine::robot::Robot;
 use ember_sdk::client::now_ns;
 use ember_sdk::recording::{self, Event};
@@ -37,6 +38,8 @@ pub struct PlanContext<'a> {
     pub recorder: Option<&'a Recorder>,
     /// The monitor, when monitoring.
     pub monitor: Option<&'a Monitor>,
+    /// Set when the daemon is asked to stop: plans in flight end as `cancelled`.
+    pub cancel: Cancel,
 }
 
 /// The plan requests port.
@@ -73,7 +76,15 @@ impl PlanPort {
             let h = *active.user_header();
             let values: &[f64] = active.payload();
             let recv_ns = now_ns();
-            let (a, lesson) = answer(cx.config, cx.robot, cx.snapshot, experience, &h, values);
+            let (a, lesson) = answer(
+                cx.config,
+                cx.robot,
+                cx.snapshot,
+                experience,
+                &cx.cancel,
+                &h,
+                values,
+            );
             let seq = cx.stats.planned(&a.header, experience);
             if a.header.status != 0 {
                 warn!("plan request refused or failed: {}", message(&a.header));
