@@ -8,9 +8,8 @@ use crate::wire::{
     PlanResponseHeader, Point, ShapeKind, MAX_CLOUD_POINTS, MAX_JOINTS, PROTOCOL_VERSION,
 };
 use iceoryx2::port::client::Client as RrClient;
-use iceoryx2::port::publisher::{Publisher, PublisherCreateError};
+use iceoryx2::port::publisher::Publisher;
 use iceoryx2::prelude::*;
-use iceoryx2::service::port_factory::client::ClientCreateError;
 use std::time::{Duration, Instant, SystemTime};
 use thiserror::Error;
 
@@ -48,6 +47,21 @@ pub enum ClientError {
 
 fn transport(e: impl std::fmt::Debug) -> ClientError {
     ClientError::Transport(format!("{e:?}"))
+}
+
+/// Why a port could not attach to a service: `LimitReached` when the service has all its
+/// `kind` taken (iceoryx2's `ExceedsMaxSupported...`), otherwise the transport's reason.
+fn attach_error(
+    e: impl std::fmt::Debug,
+    service: &'static str,
+    kind: &'static str,
+    max: usize,
+) -> ClientError {
+    let reason = format!("{e:?}");
+    match reason.starts_with("ExceedsMaxSupported") {
+        true => ClientError::LimitReached { service, kind, max },
+        false => ClientError::Transport(reason),
+    }
 }
 
 /// Nanoseconds since the Unix epoch.
@@ -130,58 +144,38 @@ impl Client {
         if plan_service.dynamic_config().number_of_servers() == 0 {
             return Err(ClientError::NoDaemon(instance.into()));
         }
-        let publishers = |service: &'static str, max: usize| {
-            move |e: PublisherCreateError| match e {
-                PublisherCreateError::ExceedsMaxSupportedPublishers => ClientError::LimitReached {
-                    service,
-                    kind: "publishers",
-                    max,
-                },
-                e => transport(e),
-            }
-        };
-        let clients = |service: &'static str, max: usize| {
-            move |e: ClientCreateError| match e {
-                ClientCreateError::ExceedsMaxSupportedClients => ClientError::LimitReached {
-                    service,
-                    kind: "clients",
-                    max,
-                },
-                e => transport(e),
-            }
-        };
         let cloud = services::cloud(&node, instance, Open::Attach).map_err(no_daemon)?;
         let max = cloud.static_config().max_publishers();
         let cloud = cloud
             .publisher_builder()
             .initial_max_slice_len(MAX_CLOUD_POINTS)
             .create()
-            .map_err(publishers("cloud", max))?;
+            .map_err(|e| attach_error(e, "cloud", "publishers", max))?;
         let objects = services::objects(&node, instance, Open::Attach).map_err(no_daemon)?;
         let max = objects.static_config().max_publishers();
         let objects = objects
             .publisher_builder()
             .create()
-            .map_err(publishers("object", max))?;
+            .map_err(|e| attach_error(e, "object", "publishers", max))?;
         let joints = services::joints(&node, instance, Open::Attach).map_err(no_daemon)?;
         let max = joints.static_config().max_publishers();
         let joints = joints
             .publisher_builder()
             .create()
-            .map_err(publishers("joint-state", max))?;
+            .map_err(|e| attach_error(e, "joint-state", "publishers", max))?;
         let max = plan_service.static_config().max_clients();
         let plan = plan_service
             .client_builder()
             .initial_max_slice_len(16 * 64)
             .allocation_strategy(AllocationStrategy::PowerOfTwo)
             .create()
-            .map_err(clients("plan", max))?;
+            .map_err(|e| attach_error(e, "plan", "clients", max))?;
         let status = services::status(&node, instance, Open::Attach).map_err(no_daemon)?;
         let max = status.static_config().max_clients();
         let status = status
             .client_builder()
             .create()
-            .map_err(clients("status", max))?;
+            .map_err(|e| attach_error(e, "status", "clients", max))?;
         Ok(Client {
             node,
             instance: instance.into(),
