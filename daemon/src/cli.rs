@@ -284,4 +284,7 @@ pub struct TrainArgs {
     /// Role of a foreign (ROS 2) bag topic, as for `ember replay` (repeat).
     #[arg(long = "topic-map")]
     pub topic_map: Vec<String>,
+    /// Learn from what is intact of a damaged file instead of refusing it.
+    #[arg(long)]
+    pub allow_truncated: bool,
 }

@@ -175,7 +175,8 @@ impl Session {
             .map(|s| s.message_count)
     }
 
-    /// Calls `f` with every event (and its log time, ns) in order. Damaged data ends the walk:
+    /// Calls `f` with every event (and its log time, ns) in order. Damaged data (including a chunk
+    /// whose CRC does not match) ends the walk:
     /// with `lenient` quietly (the count of intact messages is returned), otherwise as an error
     /// naming the file.
     pub fn for_each<E>(
@@ -197,7 +198,9 @@ impl Session {
             message,
         };
         let stream =
-            mcap::MessageStream::new(&self.bytes).map_err(|e| damaged(0, e.to_string()))?;
+            // Chunk CRCs checked: a flipped byte is damage, not data.
+            mcap::MessageStream::new_with_options(&self.bytes, mcap::read::Options::ValidateChunkCrcs.into())
+                .map_err(|e| damaged(0, e.to_string()))?;
         for message in stream {
             let m = match message {
                 Ok(m) => m,

@@ -36,54 +36,58 @@ pub fn run(args: TrainArgs) -> anyhow::Result<ExitCode> {
         );
         bar.set_message(file.display().to_string());
         let mut world = World::new(&config);
-        let read = session.for_each(true, &topics, |_, event| -> anyhow::Result<()> {
-            bar.inc(1);
-            match event {
-                Event::Object(u) => match object_of(&u) {
-                    Ok(Some(obj)) => world.upsert_object(obj),
-                    Ok(None) => {
-                        world.remove_object(&wire::name_str(&u.id));
+        let read = session.for_each(
+            args.allow_truncated,
+            &topics,
+            |_, event| -> anyhow::Result<()> {
+                bar.inc(1);
+                match event {
+                    Event::Object(u) => match object_of(&u) {
+                        Ok(Some(obj)) => world.upsert_object(obj),
+                        Ok(None) => {
+                            world.remove_object(&wire::name_str(&u.id));
+                        }
+                        Err(_) => {} // The daemon rejected it too.
+                    },
+                    Event::Joints {
+                        names, positions, ..
+                    } => {
+                        if let Some(q) = super::group_order(&robot, &names, &positions)
+                            .filter(|q| robot.validate(q).is_ok())
+                        {
+                            world.set_joints(q);
+                        }
                     }
-                    Err(_) => {} // The daemon rejected it too.
-                },
-                Event::Joints {
-                    names, positions, ..
-                } => {
-                    if let Some(q) = super::group_order(&robot, &names, &positions)
-                        .filter(|q| robot.validate(q).is_ok())
-                    {
-                        world.set_joints(q);
+                    Event::Cloud {
+                        pose: p, points, ..
+                    } => {
+                        if let Some(sensor) =
+                            pose_from_xyz_xyzw([p[0], p[1], p[2]], [p[3], p[4], p[5], p[6]])
+                        {
+                            world.insert_cloud(&robot, &points, &sensor);
+                        }
                     }
+                    Event::PlanResponse(r) => {
+                        let dof = r.dof as usize;
+                        if r.status == 0 && dof == robot.dof() && !r.path.is_empty() {
+                            let path: Vec<Vec<f64>> =
+                                r.path.chunks_exact(dof).map(<[f64]>::to_vec).collect();
+                            let snap = world.snapshot();
+                            experience.learn(
+                                &robot,
+                                &snap.scene,
+                                Some(&snap.map),
+                                &path,
+                                args.interpolate,
+                            );
+                            plans += 1;
+                        }
+                    }
+                    Event::PlanRequest(_) | Event::PlanTrajectory(_) => {}
                 }
-                Event::Cloud {
-                    pose: p, points, ..
-                } => {
-                    if let Some(sensor) =
-                        pose_from_xyz_xyzw([p[0], p[1], p[2]], [p[3], p[4], p[5], p[6]])
-                    {
-                        world.insert_cloud(&robot, &points, &sensor);
-                    }
-                }
-                Event::PlanResponse(r) => {
-                    let dof = r.dof as usize;
-                    if r.status == 0 && dof == robot.dof() && !r.path.is_empty() {
-                        let path: Vec<Vec<f64>> =
-                            r.path.chunks_exact(dof).map(<[f64]>::to_vec).collect();
-                        let snap = world.snapshot();
-                        experience.learn(
-                            &robot,
-                            &snap.scene,
-                            Some(&snap.map),
-                            &path,
-                            args.interpolate,
-                        );
-                        plans += 1;
-                    }
-                }
-                Event::PlanRequest(_) | Event::PlanTrajectory(_) => {}
-            }
-            Ok(())
-        })?;
+                Ok(())
+            },
+        )?;
         bar.finish_and_clear();
         if session.message_count().is_some_and(|n| (read as u64) < n) {
             eprintln!(

@@ -14,14 +14,16 @@
 //! `/ember/plan_response` (`ember_msgs/msg/PlanRequest`, `.../PlanResponse`). Log time is the
 //! daemon's receive (or reply) time; header stamps are the sender's.
 
+mod tail;
+
 use ember_sdk::recording::{self as messages, Event};
 use std::collections::BTreeMap;
-use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
+use tail::TailFile;
 use tracing::{error, info, warn};
 
 /// One thing to record: an event and the daemon's receive (or reply) time, ns.
@@ -112,7 +114,7 @@ fn file_name(dir: &Path, index: usize) -> PathBuf {
 
 /// One open MCAP file with its channels.
 struct SessionWriter {
-    writer: mcap::Writer<BufWriter<std::fs::File>>,
+    writer: mcap::Writer<TailFile>,
     channels: BTreeMap<&'static str, u16>,
     sequence: u32,
     opened: Instant,
@@ -129,7 +131,11 @@ impl SessionWriter {
             .chunk_size(Some(options.chunk_bytes))
             .profile("ros2")
             .library("ember")
-            .create(BufWriter::new(file))
+            // Each chunk is built in memory and written whole, followed by a provisional end
+            // (`tail`): a file cut by a kill or a full disk reads to its last flushed chunk
+            // with every standard reader (a chunk streamed in place left a length of 2^64-1).
+            .disable_seeking(true)
+            .create(TailFile::new(file))
             .map_err(|e| anyhow::anyhow!("cannot start {}: {e}", path.display()))?;
         let schemas: BTreeMap<&str, String> = messages::schemas().into_iter().collect();
         let mut channels = BTreeMap::new();
@@ -140,6 +146,8 @@ impl SessionWriter {
                 writer.add_channel(schema, name, "cdr", &BTreeMap::new())?,
             );
         }
+        // On disk at once, readable from the start.
+        writer.flush()?;
         info!("recording to {}", path.display());
         Ok(SessionWriter {
             writer,
@@ -171,7 +179,12 @@ impl SessionWriter {
     }
 
     fn finish(mut self) {
-        if let Err(e) = self.writer.finish() {
+        let done = self
+            .writer
+            .finish()
+            .map_err(anyhow::Error::from)
+            .and_then(|_| Ok(self.writer.into_inner().finish()?));
+        if let Err(e) = done {
             error!("closing {} failed: {e}", self.path.display());
         }
     }

@@ -145,8 +145,15 @@ fn a_killed_daemon_leaves_its_complete_chunks_readable() {
     let mut d = d;
     d.child.wait().unwrap();
     let bytes = std::fs::read(&d.recording).unwrap();
-    let (counts, _error) = topics(&bytes);
+    // Every flushed chunk reads, and the file ends cleanly (a provisional end after each flush).
+    let (counts, error) = topics(&bytes);
     assert_eq!(counts.get("/ember/objects"), Some(&3), "{counts:?}");
+    assert_eq!(error, None);
+    assert!(bytes.ends_with(b"\x89MCAP0\r\n"));
+    // `.ci/run` reads it with the Python `mcap` reader too.
+    let keep =
+        std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("ember-killed-session.mcap");
+    std::fs::copy(&d.recording, keep).unwrap();
 }
 
 #[test]
@@ -209,6 +216,44 @@ fn replaying_a_session_reproduces_its_plans() {
         cut.to_str().unwrap(),
         "--instance",
         &b.instance,
+        "--allow-truncated",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // Flipped bytes inside a chunk: the chunk's CRC catches them, in replay and in training.
+    let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
+    let chunk = summary
+        .chunk_indexes
+        .iter()
+        .max_by_key(|c| c.compressed_size)
+        .unwrap();
+    let mid = (chunk.chunk_start_offset + chunk.chunk_length / 2) as usize;
+    let mut flipped = bytes.clone();
+    for b in &mut flipped[mid..mid + 20] {
+        *b ^= 0x5a;
+    }
+    let bad = a.db_dir.join("flipped.mcap");
+    std::fs::write(&bad, &flipped).unwrap();
+    let db = a.db_dir.join("flipped-db");
+    for args in [
+        vec!["replay", bad.to_str().unwrap(), "--instance", &b.instance],
+        vec!["train", bad.to_str().unwrap(), "--db", db.to_str().unwrap()],
+    ] {
+        let out = crate::ember(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            out.status.code() == Some(2) && err.contains("flipped.mcap") && err.contains("damaged"),
+            "{args:?}: {err}"
+        );
+    }
+    let out = crate::ember(&[
+        "train",
+        bad.to_str().unwrap(),
+        "--db",
+        db.to_str().unwrap(),
         "--allow-truncated",
     ]);
     assert!(
