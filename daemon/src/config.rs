@@ -11,6 +11,9 @@ const MAX_PORTS: usize = 256;
 /// cloud, so more would let one key exhaust memory.
 const MAX_QUEUE: usize = 100_000;
 
+/// The most objects the config may allow (SPARK pairs are kept per object pair).
+const MAX_OBJECTS: usize = 10_000;
+
 /// The fastest status publication the config may ask for, Hz.
 const MAX_STATUS_HZ: f64 = 100.0;
 
@@ -49,6 +52,8 @@ pub struct LimitsConfig {
     pub clients: usize,
     pub publishers: usize,
     pub subscribers: usize,
+    /// Objects the world holds at most (new ones beyond are rejected).
+    pub objects: usize,
 }
 
 impl LimitsConfig {
@@ -286,6 +291,12 @@ impl Config {
             if !(1..=MAX_PORTS).contains(&v) {
                 return Err(format!("key {key} must be 1 to {MAX_PORTS}, got {v}"));
             }
+        }
+        if !(1..=MAX_OBJECTS).contains(&self.limits.objects) {
+            return Err(format!(
+                "key limits.objects must be 1 to {MAX_OBJECTS}, got {}",
+                self.limits.objects
+            ));
         }
         if self.map.max_points == 0 {
             return Err("key map.max_points must be at least 1".into());

@@ -84,6 +84,11 @@ impl World {
     }
 
     /// Removes an object and its pairs; false when unknown.
+    /// True when no object of this name exists and the world already holds `max` objects.
+    pub fn would_exceed(&self, name: &str, max: usize) -> bool {
+        self.scene.objects.len() >= max && !self.scene.objects.iter().any(|o| o.name == name)
+    }
+
     pub fn remove_object(&mut self, name: &str) -> bool {
         let before = self.scene.objects.len();
         self.objects_version += 1;

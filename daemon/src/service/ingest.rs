@@ -48,6 +48,7 @@ impl Ingest {
         let joints = JointsPort::open(&node, instance, limits)?;
         let mut world = World::new(&self.config);
         let max_extent = self.config.map.max_object_extent();
+        let max_objects = self.config.limits.objects;
         let _ = ready.send(());
         while !self.stop.load(Ordering::Relaxed) {
             let mut changed = false;
@@ -84,6 +85,12 @@ impl Ingest {
                     self.record(now_ns(), Event::Object(update));
                 }
                 let applied = match input {
+                    Ok(ObjectInput::Upsert(o)) if world.would_exceed(&o.name, max_objects) => {
+                        Err(Rejection::TooManyObjects {
+                            id: o.name,
+                            limit: max_objects,
+                        })
+                    }
                     Ok(ObjectInput::Upsert(o)) => {
                         world.upsert_object(o);
                         Ok(())

@@ -112,6 +112,14 @@ pub enum Rejection {
         /// The largest dimension or distance accepted, metres.
         limit: f64,
     },
+    /// A new object while the world already holds `limits.objects`.
+    #[error("object '{id}': the world already holds {limit} objects (limits.objects)")]
+    TooManyObjects {
+        /// Object name.
+        id: String,
+        /// `limits.objects`.
+        limit: usize,
+    },
     /// An object pose whose quaternion is zero.
     #[error("object '{0}': zero quaternion")]
     ObjectQuaternion(String),

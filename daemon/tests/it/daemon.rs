@@ -610,12 +610,16 @@ fn a_client_beyond_the_limit_is_told_which_limit() {
     let dir = std::env::temp_dir().join(format!("ember-limits-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let config = dir.join("emberd.toml");
-    std::fs::write(&config, "[limits]\npublishers = 2\nclients = 3\n").unwrap();
+    std::fs::write(
+        &config,
+        "[limits]\npublishers = 2\nclients = 3\nobjects = 2\n",
+    )
+    .unwrap();
     let d = Daemon::start_args(
         "limits",
         &["--no-monitor", "--config", config.to_str().unwrap()],
     );
-    let (_a, _b) = (d.client(), d.client());
+    let (a, _b) = (d.client(), d.client());
     let e = match Client::connect(&d.instance) {
         Err(e) => e,
         Ok(_) => panic!("a third client attached past publishers = 2"),
@@ -632,6 +636,14 @@ fn a_client_beyond_the_limit_is_told_which_limit() {
         "{e}"
     );
     assert!(e.to_string().contains("limits.publishers"), "{e}");
+    // The world holds two objects at most: the table's third is refused and counted; moving
+    // one already held still works.
+    publish_table(&a);
+    wait_for(&a, "two objects and a rejection", |s| {
+        s.world_objects == 2 && s.rejected == 1
+    });
+    publish_table(&a);
+    wait_for(&a, "the moves", |s| s.objects == 4 && s.rejected == 2);
     std::fs::remove_dir_all(&dir).ok();
 }
 
