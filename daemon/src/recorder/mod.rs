@@ -124,7 +124,8 @@ struct SessionWriter {
 
 impl SessionWriter {
     fn open(path: &Path, options: &RecorderOptions) -> anyhow::Result<Self> {
-        let file = std::fs::File::create(path)
+        // Owner-only, as the databases: recordings hold the robot's surroundings.
+        let file = ember_engine::experience::file::private_file(path)
             .map_err(|e| anyhow::anyhow!("cannot create {}: {e}", path.display()))?;
         let mut writer = mcap::WriteOptions::new()
             .compression(Some(mcap::Compression::Zstd))

@@ -418,6 +418,12 @@ fn sigterm_saves_the_database_and_sigkill_allows_an_immediate_restart() {
     assert!(code.success(), "clean exit: {code:?}");
     let files = ember_engine::experience::Experience::files(&db_dir);
     assert!(files.iter().all(|f| f.exists()), "{files:?}");
+    // Databases and recordings are the owner's only.
+    use std::os::unix::fs::PermissionsExt;
+    for f in files.iter().chain([&d.recording]) {
+        let mode = std::fs::metadata(f).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode, 0o600, "{}", f.display());
+    }
     std::mem::forget(d); // keep the database folder for the restart
 
     let d = Daemon::start_with(instance.clone(), db_dir.clone(), &["--no-monitor"]);

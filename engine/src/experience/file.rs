@@ -243,6 +243,16 @@ fn io(path: &Path, e: std::io::Error) -> DbError {
     }
 }
 
+/// Creates (or truncates) `path` readable and writable by its owner only (`0600` on Unix):
+/// what the robot learned is nobody else's to read or change.
+pub fn private_file(path: &Path) -> std::io::Result<std::fs::File> {
+    let mut options = std::fs::OpenOptions::new();
+    options.write(true).create(true).truncate(true);
+    #[cfg(unix)]
+    std::os::unix::fs::OpenOptionsExt::mode(&mut options, 0o600);
+    options.open(path)
+}
+
 /// Writes `kind` + `payload` to `path` atomically.
 fn save(path: &Path, kind: u8, payload: &[u8]) -> Result<(), DbError> {
     use std::io::Write;
@@ -263,7 +273,7 @@ fn save(path: &Path, kind: u8, payload: &[u8]) -> Result<(), DbError> {
         .map(|n| n.to_string_lossy().to_string())
         .unwrap_or_default();
     let tmp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
-    let mut f = std::fs::File::create(&tmp).map_err(|e| io(&tmp, e))?;
+    let mut f = private_file(&tmp).map_err(|e| io(&tmp, e))?;
     f.write_all(&bytes).map_err(|e| io(&tmp, e))?;
     f.sync_all().map_err(|e| io(&tmp, e))?;
     drop(f);
