@@ -81,7 +81,7 @@ impl Ingest {
             }
             while let Some((update, input)) = objects.receive(max_extent) {
                 // Recorded as received, whether or not it applies.
-                if update.version == wire::PROTOCOL_VERSION {
+                if Rejection::check_version("object update", update.version).is_ok() {
                     self.record(now_ns(), Event::Object(update));
                 }
                 let applied = match input {

@@ -73,19 +73,18 @@ fn status_of(e: &PlanError) -> Status {
     }
 }
 
-/// A solved path to learn from once the reply is out, with the world it was planned in.
+/// What learning from a solved plan needs once the reply is out: the world it was planned in
+/// (the path is the answer's).
 pub struct Lesson {
     /// The world the plan saw.
     pub snapshot: Arc<Snapshot>,
-    /// The solution.
-    pub path: Vec<Vec<f64>>,
 }
 
 impl Lesson {
-    /// Adds what the solution teaches to `experience`.
-    pub fn learn(&self, robot: &Robot, experience: &mut Experience) {
+    /// Adds what the solution `path` teaches to `experience`.
+    pub fn learn(&self, robot: &Robot, path: &[Vec<f64>], experience: &mut Experience) {
         let s = &self.snapshot;
-        experience.learn(robot, &s.scene, Some(&s.map), &self.path, None);
+        experience.learn(robot, &s.scene, Some(&s.map), path, None);
     }
 }
 
@@ -150,7 +149,6 @@ pub fn answer(
             header.total_us = t0.elapsed().as_secs_f64() * 1e6;
             let lesson = d.learn.then(|| Lesson {
                 snapshot: snap.clone(),
-                path: res.path.clone(),
             });
             let answer = Answer {
                 header,

@@ -112,7 +112,7 @@ impl PlanPort {
                 m.plan(plan_summary(&cx.config.instance, seq, recv_ns, &h, &a));
             }
             if let Some(lesson) = lesson {
-                lesson.learn(cx.robot, experience);
+                lesson.learn(cx.robot, &a.path, experience);
                 cx.stats.learned(experience);
             }
         }
