@@ -339,11 +339,13 @@ impl BatchChecker {
             }
         }
         if filled > 0 {
-            self.states -= (LANES - filled) as u64;
             for i in filled..LANES {
                 batch[i] = batch[filled - 1];
             }
-            if self.states_may_collide(a, n, &batch) && !decide(&batch, n) {
+            let may_collide = self.states_may_collide(a, n, &batch);
+            // Only the distinct states count (the filler repeats the last).
+            self.states -= (LANES - filled) as u64;
+            if may_collide && !decide(&batch, n) {
                 return false;
             }
         }
