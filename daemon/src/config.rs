@@ -14,6 +14,9 @@ const MAX_QUEUE: usize = 100_000;
 /// The most objects the config may allow (SPARK pairs are kept per object pair).
 const MAX_OBJECTS: usize = 10_000;
 
+/// The most planning threads the config may ask for.
+const MAX_WORKERS: usize = 64;
+
 /// The fastest status publication the config may ask for, Hz.
 const MAX_STATUS_HZ: f64 = 100.0;
 
@@ -127,6 +130,8 @@ pub struct PlannerConfig {
     pub default_time_limit_s: f64,
     /// Requests asking for more are refused (`bad_request` naming the cap).
     pub max_time_limit_s: f64,
+    /// Planning threads (0: one per core).
+    pub workers: usize,
     pub range: f64,
     pub simplify: bool,
     pub use_map: bool,
@@ -141,6 +146,16 @@ pub struct TrajectoryConfig {
     pub max_deviation: f64,
     pub sample_period_s: f64,
     pub default_acceleration: f64,
+}
+
+impl PlannerConfig {
+    /// Planning threads: `workers`, or one per core when 0.
+    pub fn worker_count(&self) -> usize {
+        match self.workers {
+            0 => std::thread::available_parallelism().map_or(1, |n| n.get().min(MAX_WORKERS)),
+            n => n,
+        }
+    }
 }
 
 impl TrajectoryConfig {
@@ -243,6 +258,12 @@ impl Config {
             ));
         }
         positive("planner.range", self.planner.range)?;
+        if self.planner.workers > MAX_WORKERS {
+            return Err(format!(
+                "key planner.workers must be at most {MAX_WORKERS} (0 = one per core), got {}",
+                self.planner.workers
+            ));
+        }
         positive("experience.save_every_s", self.experience.save_every_s)?;
         positive("record.max_file_mb", self.record.max_file_mb)?;
         positive("record.max_file_s", self.record.max_file_s)?;

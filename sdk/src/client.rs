@@ -4,12 +4,15 @@ use crate::services::{self, Open};
 use crate::status::Status;
 use crate::wire::plan::MAX_PLAN_VALUES;
 use crate::wire::{
-    self, CloudHeader, GoalKind, JointState, Method, ObjectUpdate, PlanRequestHeader,
-    PlanResponseHeader, Point, ShapeKind, MAX_CLOUD_POINTS, MAX_JOINTS, PROTOCOL_VERSION,
+    self, CancelReply, CancelRequest, CloudHeader, GoalKind, JointState, Method, ObjectUpdate,
+    PlanRequestHeader, PlanResponseHeader, Point, ShapeKind, MAX_CLOUD_POINTS, MAX_JOINTS,
+    PROTOCOL_VERSION,
 };
+use iceoryx2::pending_response::PendingResponse;
 use iceoryx2::port::client::Client as RrClient;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::prelude::*;
+use std::cell::Cell;
 use std::time::{Duration, Instant, SystemTime};
 use thiserror::Error;
 
@@ -123,6 +126,83 @@ pub struct Client {
     joints: Publisher<ipc::Service, JointState, ()>,
     plan: RrClient<ipc::Service, [f64], PlanRequestHeader, [f64], PlanResponseHeader>,
     status: RrClient<ipc::Service, u64, (), wire::StatusReply, ()>,
+    cancel: RrClient<ipc::Service, CancelRequest, (), CancelReply, ()>,
+    /// The last message number per input kind (cloud, object, joints).
+    seq: [Cell<u64>; 3],
+    /// The last request id handed out.
+    last_request_id: Cell<u64>,
+}
+
+/// A plan request sent and not yet answered ([`Client::submit`]).
+pub struct PendingPlan {
+    pending: PendingResponse<ipc::Service, [f64], PlanRequestHeader, [f64], PlanResponseHeader>,
+    header: PlanRequestHeader,
+}
+
+impl PendingPlan {
+    /// The id the request carries: pass it to [`Client::cancel`] to cancel the plan.
+    pub fn request_id(&self) -> u64 {
+        self.header.request_id
+    }
+
+    /// The reply, if it has arrived.
+    pub fn try_receive(&self) -> Result<Option<PlanReply>, ClientError> {
+        let Some(response) = self.pending.receive().map_err(transport)? else {
+            return Ok(None);
+        };
+        let h = *response.user_header();
+        let data = response.payload();
+        let (dof, waypoints) = (h.dof as usize, h.waypoints as usize);
+        let path_values = (dof * waypoints).min(data.len());
+        let path = if dof == 0 {
+            Vec::new()
+        } else {
+            data[..path_values]
+                .chunks_exact(dof)
+                .map(<[f64]>::to_vec)
+                .collect()
+        };
+        let trajectory =
+            if self.header.flags & wire::FLAG_TRAJECTORY != 0 && data.len() > path_values {
+                Some(
+                    wire::TrajectoryBlock::decode(&data[path_values..], dof, waypoints)
+                        .map_err(|e| ClientError::Transport(format!("malformed reply: {e}")))?,
+                )
+            } else {
+                None
+            };
+        Ok(Some(PlanReply {
+            status: Status::from_code(h.status).unwrap_or(Status::Internal),
+            path,
+            header: h,
+            trajectory,
+        }))
+    }
+
+    /// Waits at most `timeout` for the reply.
+    pub fn wait(&self, timeout: Duration) -> Result<PlanReply, ClientError> {
+        let deadline = Instant::now() + timeout;
+        loop {
+            if let Some(reply) = self.try_receive()? {
+                return Ok(reply);
+            }
+            if Instant::now() >= deadline {
+                return Err(ClientError::Timeout(timeout));
+            }
+            // The caller is blocked on this reply anyway: give the core away without sleeping,
+            // so the reply is seen within microseconds.
+            std::thread::yield_now();
+        }
+    }
+}
+
+/// A request id base unlikely to repeat across clients: the process, the time and the
+/// client's address mixed (splitmix64); ids count up from it and are never 0.
+fn request_id_base(salt: usize) -> u64 {
+    let mut z = now_ns() ^ ((std::process::id() as u64) << 40) ^ (salt as u64).rotate_left(17);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    (z ^ (z >> 31)) & !0xffff
 }
 
 impl Client {
@@ -176,6 +256,13 @@ impl Client {
             .client_builder()
             .create()
             .map_err(|e| attach_error(e, "status", "clients", max))?;
+        let cancel = services::cancel(&node, instance, Open::Attach).map_err(no_daemon)?;
+        let max = cancel.static_config().max_clients();
+        let cancel = cancel
+            .client_builder()
+            .create()
+            .map_err(|e| attach_error(e, "cancel", "clients", max))?;
+        let base = request_id_base(&node as *const _ as usize);
         Ok(Client {
             node,
             instance: instance.into(),
@@ -184,12 +271,22 @@ impl Client {
             joints,
             plan,
             status,
+            cancel,
+            seq: Default::default(),
+            last_request_id: Cell::new(base),
         })
     }
 
     /// The instance connected to.
     pub fn instance(&self) -> &str {
         &self.instance
+    }
+
+    /// The next message number of input kind `kind` (0 cloud, 1 object, 2 joints).
+    fn next_seq(&self, kind: usize) -> u64 {
+        let n = self.seq[kind].get() + 1;
+        self.seq[kind].set(n);
+        n
     }
 
     /// Publishes a cloud of `count` points, written by `fill` straight into shared memory.
@@ -216,6 +313,7 @@ impl Client {
             stamp_ns: if stamp_ns == 0 { now_ns() } else { stamp_ns },
             frame_id: wire::name(frame_id),
             sensor_pose,
+            seq: self.next_seq(0),
         };
         sample.send().map_err(transport)?;
         Ok(())
@@ -236,6 +334,7 @@ impl Client {
             id: wire::name(id),
             dims,
             pose,
+            seq: self.next_seq(1),
         };
         self.objects.send_copy(update).map_err(transport)?;
         Ok(())
@@ -260,6 +359,7 @@ impl Client {
             count: positions.len() as u32,
             stamp_ns: now_ns(),
             positions: [0.0; MAX_JOINTS],
+            seq: self.next_seq(2),
         };
         js.positions[..positions.len()].copy_from_slice(positions);
         self.joints.send_copy(js).map_err(transport)?;
@@ -268,7 +368,7 @@ impl Client {
 
     /// Plans; waits at most `timeout` for the reply.
     pub fn plan(&self, call: &PlanCall, timeout: Duration) -> Result<PlanReply, ClientError> {
-        self.plan_with_flags(call, 0, timeout)
+        self.submit(call, 0)?.wait(timeout)
     }
 
     /// Plans with request flags ([`wire::FLAG_NO_LEARN`]).
@@ -278,6 +378,12 @@ impl Client {
         flags: u32,
         timeout: Duration,
     ) -> Result<PlanReply, ClientError> {
+        self.submit(call, flags)?.wait(timeout)
+    }
+
+    /// Sends a plan request with `flags` and returns at once: wait for the reply on the
+    /// [`PendingPlan`], or cancel it with [`Client::cancel`] and its request id.
+    pub fn submit(&self, call: &PlanCall, flags: u32) -> Result<PendingPlan, ClientError> {
         let dof = call.start.len();
         let (kind, pose, pt, ot) = match call.pose {
             Some((p, pt, ot)) => (GoalKind::Pose, p, pt, ot),
@@ -293,6 +399,8 @@ impl Client {
         } else {
             flags
         };
+        let request_id = self.last_request_id.get().wrapping_add(1).max(1);
+        self.last_request_id.set(request_id);
         let header = PlanRequestHeader {
             version: PROTOCOL_VERSION,
             dof: dof as u32,
@@ -305,6 +413,7 @@ impl Client {
             pose,
             position_tolerance: pt,
             orientation_tolerance: ot,
+            request_id,
         };
         let mut values = call.start.clone();
         for g in &call.goals {
@@ -313,7 +422,40 @@ impl Client {
         if let Some((v, a)) = call.trajectory {
             values.extend_from_slice(&[v, a]);
         }
-        self.plan_raw(header, &values, timeout)
+        self.submit_raw(header, &values)
+    }
+
+    /// Cancels the plans in flight whose request carried `request_id` (they are answered
+    /// `cancelled`); returns how many there were (0: none, e.g. already answered). Waits at
+    /// most `timeout` for the daemon's answer.
+    pub fn cancel(&self, request_id: u64, timeout: Duration) -> Result<u32, ClientError> {
+        let pending = self
+            .cancel
+            .send_copy(CancelRequest {
+                version: PROTOCOL_VERSION,
+                reserved: 0,
+                request_id,
+            })
+            .map_err(transport)?;
+        let deadline = Instant::now() + timeout;
+        loop {
+            if let Some(r) = pending.receive().map_err(transport)? {
+                let r = *r.payload();
+                return match Status::from_code(r.status) {
+                    Some(Status::Ok) => Ok(r.cancelled),
+                    _ => Err(ClientError::Transport(format!(
+                        "the daemon refused the cancel request (status {}, protocol version {})",
+                        r.status, r.version
+                    ))),
+                };
+            }
+            if Instant::now() >= deadline {
+                return Err(ClientError::Timeout(timeout));
+            }
+            if self.node.wait(Duration::from_micros(50)).is_err() {
+                return Err(ClientError::Transport("interrupted".into()));
+            }
+        }
     }
 
     /// The daemon's counters and latencies.
@@ -340,6 +482,15 @@ impl Client {
         values: &[f64],
         timeout: Duration,
     ) -> Result<PlanReply, ClientError> {
+        self.submit_raw(header, values)?.wait(timeout)
+    }
+
+    /// Sends a request exactly as given and returns at once.
+    pub fn submit_raw(
+        &self,
+        header: PlanRequestHeader,
+        values: &[f64],
+    ) -> Result<PendingPlan, ClientError> {
         if values.len() > MAX_PLAN_VALUES {
             return Err(ClientError::InvalidInput(format!(
                 "{} values, at most {MAX_PLAN_VALUES}",
@@ -353,44 +504,6 @@ impl Client {
         *request.user_header_mut() = header;
         let request = request.write_from_slice(values);
         let pending = request.send().map_err(transport)?;
-        let deadline = Instant::now() + timeout;
-        loop {
-            if let Some(response) = pending.receive().map_err(transport)? {
-                let h = *response.user_header();
-                let data = response.payload();
-                let (dof, waypoints) = (h.dof as usize, h.waypoints as usize);
-                let path_values = (dof * waypoints).min(data.len());
-                let path = if dof == 0 {
-                    Vec::new()
-                } else {
-                    data[..path_values]
-                        .chunks_exact(dof)
-                        .map(<[f64]>::to_vec)
-                        .collect()
-                };
-                let trajectory = if header.flags & wire::FLAG_TRAJECTORY != 0
-                    && data.len() > path_values
-                {
-                    Some(
-                        wire::TrajectoryBlock::decode(&data[path_values..], dof, waypoints)
-                            .map_err(|e| ClientError::Transport(format!("malformed reply: {e}")))?,
-                    )
-                } else {
-                    None
-                };
-                return Ok(PlanReply {
-                    status: Status::from_code(h.status).unwrap_or(Status::Internal),
-                    path,
-                    header: h,
-                    trajectory,
-                });
-            }
-            if Instant::now() >= deadline {
-                return Err(ClientError::Timeout(timeout));
-            }
-            // The caller is blocked on this reply anyway: give the core away without sleeping,
-            // so the reply is seen within microseconds.
-            std::thread::yield_now();
-        }
+        Ok(PendingPlan { pending, header })
     }
 }

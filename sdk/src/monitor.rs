@@ -88,6 +88,14 @@ impl From<&StatusDoc> for crate::wire::StatusReply {
             flame_entries: d.experience.flame_entries,
             recorded: d.recording.written,
             recording_dropped: d.recording.dropped,
+            recording_failures: d.recording.failures,
+            recording_failing: d.recording.failing as u64,
+            plans_in_flight: d.plans.in_flight,
+            oldest_plan_ms: d.plans.oldest_in_flight_ms,
+            cancelled: d.plans.cancelled,
+            dropped_clouds: d.inputs.dropped_clouds,
+            dropped_objects: d.inputs.dropped_objects,
+            dropped_joints: d.inputs.dropped_joints,
         }
     }
 }
@@ -119,6 +127,13 @@ pub struct InputsDoc {
     /// Cloud points dropped because a coordinate was NaN or infinite (no-return pixels of
     /// depth cameras; the rest of the cloud is used).
     pub invalid_points: u64,
+    /// Clouds dropped before the daemon read them (its buffer was full; counted from gaps in
+    /// the publishers' message numbers).
+    pub dropped_clouds: u64,
+    /// Object updates dropped likewise.
+    pub dropped_objects: u64,
+    /// Joint states dropped likewise.
+    pub dropped_joints: u64,
 }
 
 /// The occupancy map's size.
@@ -175,6 +190,12 @@ pub struct PlansDoc {
     pub latency_p50_ms: f64,
     /// Same, 99th percentile, ms.
     pub latency_p99_ms: f64,
+    /// Answered `cancelled` (a cancel request, or the daemon stopping).
+    pub cancelled: u64,
+    /// Being planned or waiting for a worker now.
+    pub in_flight: u64,
+    /// Age of the oldest plan in flight, ms (0 when none): a watchdog's stuck-planner signal.
+    pub oldest_in_flight_ms: f64,
 }
 
 /// Session recording.
@@ -187,8 +208,12 @@ pub struct RecordingDoc {
     pub path: String,
     /// Records written.
     pub written: u64,
-    /// Records dropped because the writer fell behind.
+    /// Records dropped because the writer fell behind or was paused by a failure.
     pub dropped: u64,
+    /// Times writing failed (a full disk, an I/O error) and recording paused.
+    pub failures: u64,
+    /// Paused by a failure now; a new file is tried with back-off (0.1 s doubling to 2 s).
+    pub failing: bool,
 }
 
 /// One answered plan request.

@@ -10,8 +10,8 @@
 use crate::names::service;
 use crate::wire::plan::MAX_PLAN_VALUES;
 use crate::wire::{
-    CloudHeader, JointState, ObjectUpdate, PlanRequestHeader, PlanResponseHeader, Point,
-    StatusReply,
+    CancelReply, CancelRequest, CloudHeader, JointState, ObjectUpdate, PlanRequestHeader,
+    PlanResponseHeader, Point, StatusReply,
 };
 use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::{publish_subscribe, request_response};
@@ -164,4 +164,21 @@ pub fn status(
         .service_builder(&name)
         .request_response::<u64, StatusReply>();
     open_req_res!(b, open, "status")
+}
+
+/// The cancel service type.
+pub type CancelService =
+    request_response::PortFactory<ipc::Service, CancelRequest, (), CancelReply, ()>;
+
+/// Opens (or creates) the cancel service of `instance`.
+pub fn cancel(
+    node: &Node<ipc::Service>,
+    instance: &str,
+    open: Open,
+) -> Result<CancelService, String> {
+    let name = ServiceName::new(&service(instance, "cancel")).map_err(|e| format!("{e:?}"))?;
+    let b = node
+        .service_builder(&name)
+        .request_response::<CancelRequest, CancelReply>();
+    open_req_res!(b, open, "cancel")
 }

@@ -222,7 +222,10 @@ impl Session {
                     Event::Object(ObjectUpdate::from(&o))
                 }
                 (recording::topic::PLAN_REQUEST, _) => {
-                    Event::PlanRequest(recording::decode(&m.data).map_err(bad)?)
+                    let schema = m.channel.schema.as_ref().map_or(&[][..], |s| &s.data[..]);
+                    Event::PlanRequest(
+                        recording::PlanRequest::decode(&m.data, schema).map_err(bad)?,
+                    )
                 }
                 (recording::topic::PLAN_RESPONSE, _) => {
                     Event::PlanResponse(recording::decode(&m.data).map_err(bad)?)
@@ -285,6 +288,7 @@ impl Session {
                         id: wire::name(&id),
                         dims,
                         pose: pose.pose.to_wire(),
+                        seq: 0,
                     })
                 }
                 _ => continue,

@@ -181,7 +181,7 @@ fn draw(watched: &BTreeMap<String, Watched>, connect: &[String]) {
         connect.join(",")
     );
     out += &format!(
-        "{:<14} {:<6} {:>8} {:>8} {:>8} {:>9} {:>11} {:>9} {:>15} {:>8}\n",
+        "{:<14} {:<6} {:>8} {:>8} {:>8} {:>9} {:>11} {:>9} {:>15} {:>10} {:>8}\n",
         "instance",
         "state",
         "uptime",
@@ -191,6 +191,7 @@ fn draw(watched: &BTreeMap<String, Watched>, connect: &[String]) {
         "spark/flame",
         "plans",
         "p50/p99 ms",
+        "in flight",
         "dropped"
     );
     for (name, w) in watched {
@@ -198,7 +199,7 @@ fn draw(watched: &BTreeMap<String, Watched>, connect: &[String]) {
         match &w.status {
             Some(s) => {
                 out += &format!(
-                    "{:<14} {:<6} {:>7.0}s {:>8.1} {:>8} {:>9.1} {:>11} {:>9} {:>15} {:>8}\n",
+                    "{:<14} {:<6} {:>7.0}s {:>8.1} {:>8} {:>9.1} {:>11} {:>9} {:>15} {:>10} {:>8}\n",
                     name,
                     state,
                     s.uptime_s,
@@ -214,6 +215,11 @@ fn draw(watched: &BTreeMap<String, Watched>, connect: &[String]) {
                         "{:.1}/{:.1}",
                         s.plans.latency_p50_ms, s.plans.latency_p99_ms
                     ),
+                    // How many, and how long the oldest has run: a stuck planner shows here.
+                    match s.plans.in_flight {
+                        0 => "0".to_string(),
+                        n => format!("{n} ({:.1}s)", s.plans.oldest_in_flight_ms / 1e3),
+                    },
                     s.recording.dropped + s.monitor_dropped,
                 );
             }

@@ -1,23 +1,25 @@
-//! `ember run`: the daemon. Wires the services together: ingest on its own thread, plan and
-//! status on the main thread; SIGINT/SIGTERM stop it cleanly (databases saved).
+//! `ember run`: the daemon. Wires the services together: ingest on its own thread, plans on
+//! a pool of workers, the plan, status and cancel ports on the main thread; SIGINT/SIGTERM
+//! stop it cleanly (plans in flight cancelled and answered, databases saved).
 
 use crate::cli::RunArgs;
 use crate::config::Config;
 use crate::monitor::docs::Sources;
 use crate::monitor::Monitor;
 use crate::recorder::{self, RecorderOptions};
+use crate::service::cancel::CancelPort;
 use crate::service::ingest::Ingest;
-use crate::service::plan::{PlanContext, PlanPort};
+use crate::service::plan::workers::work;
+use crate::service::plan::{Job, PlanContext, PlanPort, Reply};
 use crate::service::status::StatusPort;
 use crate::service::{SnapshotCell, Stats};
 use crate::world::World;
 use ember_engine::experience::{Database, Experience, ExperienceParams};
-use ember_engine::planning::Cancel;
 use ember_sdk::launch::Ready;
 use iceoryx2::prelude::*;
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::{mpsc, Arc, Mutex, RwLock};
 use std::time::{Duration, Instant};
 use tracing::{error, info};
 
@@ -89,10 +91,11 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     // A daemon killed with SIGKILL leaves its resources behind: reclaim them before serving.
     let _ = node.try_cleanup_dead_nodes();
     let limits = config.limits.get();
-    let plans = PlanPort::open(&node, &config.instance, limits, robot.dof())?;
+    let mut plans = PlanPort::open(&node, &config.instance, limits, robot.dof())?;
     let status = StatusPort::open(&node, &config.instance, limits)?;
+    let cancel = CancelPort::open(&node, &config.instance, limits)?;
 
-    let (mut experience, set_aside) = Experience::load_dir(
+    let (experience, set_aside) = Experience::load_dir(
         &config.experience.db_dir,
         &ExperienceParams::default(),
         config.map.resolution,
@@ -170,8 +173,8 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     use std::io::Write;
     std::io::stdout().flush().ok();
 
-    // SIGINT/SIGTERM while a plan runs: the watcher sets the flag the plan reads, so the plan
-    // ends as `cancelled` within milliseconds and the loop below stops.
+    // SIGINT/SIGTERM: the watcher sets `terminate`; the loop below then cancels the plans in
+    // flight (each ends as `cancelled` within milliseconds), answers them and stops.
     let terminate = Arc::new(AtomicBool::new(false));
     let watcher = watch_termination(terminate.clone(), stop.clone())?;
     let cx = PlanContext {
@@ -181,36 +184,63 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         stats: &stats,
         recorder: recorder.as_ref(),
         monitor: monitor.as_ref(),
-        cancel: Cancel::new(terminate.clone()),
     };
-    // Poll without sleeping for a while after each request (a client streaming requests gets
-    // them picked up within microseconds), then sleep in short waits.
-    let mut last_request = Instant::now() - Duration::from_secs(1);
-    loop {
-        let busy = last_request.elapsed() < Duration::from_millis(20);
-        let wait = if busy {
-            Duration::ZERO
-        } else {
-            Duration::from_micros(50)
-        };
-        if node.wait(wait).is_err() || terminate.load(Ordering::Relaxed) {
-            info!("termination requested");
-            break;
+    let experience = RwLock::new(experience);
+    let (job_tx, job_rx) = mpsc::channel::<Job>();
+    let job_rx = Mutex::new(job_rx);
+    let (reply_tx, reply_rx) = mpsc::channel::<Reply>();
+    let workers = config.planner.worker_count();
+    info!("planning on {workers} worker thread(s)");
+    std::thread::scope(|scope| -> anyhow::Result<()> {
+        for i in 0..workers {
+            let (cx, experience, job_rx, reply_tx) = (&cx, &experience, &job_rx, reply_tx.clone());
+            std::thread::Builder::new()
+                .name(format!("planner-{i}"))
+                .spawn_scoped(scope, move || work(cx, experience, job_rx, reply_tx))?;
         }
-        if busy {
-            std::thread::yield_now();
+        drop(reply_tx);
+        // Poll without sleeping for a while after each request (a client streaming requests
+        // gets them picked up within microseconds), then sleep in short waits; a reply wakes
+        // the wait at once.
+        let mut last_request = Instant::now() - Duration::from_secs(1);
+        while !terminate.load(Ordering::Relaxed) {
+            let busy = last_request.elapsed() < Duration::from_millis(20);
+            let reply = match busy {
+                true => {
+                    std::thread::yield_now();
+                    reply_rx.try_recv().ok()
+                }
+                false => reply_rx.recv_timeout(Duration::from_micros(50)).ok(),
+            };
+            if let Some(r) = reply {
+                plans.reply(r);
+            }
+            while let Ok(r) = reply_rx.try_recv() {
+                plans.reply(r);
+            }
+            if plans.take(&stats, &job_tx) > 0 {
+                last_request = Instant::now();
+            }
+            status.serve(&sources);
+            cancel.serve(&stats.in_flight);
+            if last_save.elapsed().as_secs_f64() >= config.experience.save_every_s {
+                let mut experience = experience.write().expect("experience lock");
+                if experience.is_dirty() {
+                    save(&config, &mut experience);
+                }
+                last_save = Instant::now();
+            }
         }
-        if plans.serve(&cx, &mut experience) > 0 {
-            last_request = Instant::now();
+        info!("termination requested");
+        // Plans in flight (and queued) end as `cancelled` and are answered before the exit.
+        stats.in_flight.cancel_all();
+        drop(job_tx);
+        for r in reply_rx.iter() {
+            plans.reply(r);
         }
-        status.serve(&sources);
-        if experience.is_dirty()
-            && last_save.elapsed().as_secs_f64() >= config.experience.save_every_s
-        {
-            save(&config, &mut experience);
-            last_save = Instant::now();
-        }
-    }
+        Ok(())
+    })?;
+    let mut experience = experience.into_inner().expect("experience lock");
     stop.store(true, Ordering::Relaxed);
     let _ = watcher.join();
     match ingest.join() {

@@ -96,6 +96,7 @@ impl Sources {
         };
         let (cloud_p50, cloud_p99) = st.cloud_latency_us.p50_p99();
         let (plan_p50, plan_p99) = st.plan_latency_us.p50_p99();
+        let in_flight = self.stats.in_flight.summary();
         StatusDoc {
             instance: self.instance.clone(),
             robot: self.robot.clone(),
@@ -128,6 +129,8 @@ impl Sources {
                 rate_hz: hz[3],
                 latency_p50_ms: plan_p50 / 1e3,
                 latency_p99_ms: plan_p99 / 1e3,
+                in_flight: in_flight.count,
+                oldest_in_flight_ms: in_flight.oldest.as_secs_f64() * 1e3,
                 ..st.plans.clone()
             },
             recording: match &self.recorder {
@@ -141,6 +144,8 @@ impl Sources {
                         .to_string(),
                     written: r.written.load(Ordering::Relaxed),
                     dropped: r.dropped.load(Ordering::Relaxed),
+                    failures: r.failures.load(Ordering::Relaxed),
+                    failing: r.failing.load(Ordering::Relaxed),
                 },
                 None => RecordingDoc::default(),
             },

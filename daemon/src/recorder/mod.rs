@@ -49,6 +49,10 @@ pub struct RecorderOptions {
 pub struct RecorderStats {
     pub written: AtomicU64,
     pub dropped: AtomicU64,
+    /// Times writing failed (a full disk, an I/O error) and recording paused.
+    pub failures: AtomicU64,
+    /// Paused by a failure now, retrying.
+    pub failing: std::sync::atomic::AtomicBool,
     pub bytes: AtomicU64,
     /// The file being written.
     pub current: std::sync::Mutex<PathBuf>,
@@ -119,6 +123,9 @@ struct SessionWriter {
     sequence: u32,
     opened: Instant,
     bytes: u64,
+    /// Message bytes in the chunk not yet closed, and the size that closes it.
+    unflushed: u64,
+    chunk_bytes: u64,
     path: PathBuf,
 }
 
@@ -129,7 +136,9 @@ impl SessionWriter {
             .map_err(|e| anyhow::anyhow!("cannot create {}: {e}", path.display()))?;
         let mut writer = mcap::WriteOptions::new()
             .compression(Some(mcap::Compression::Zstd))
-            .chunk_size(Some(options.chunk_bytes))
+            // Chunks are closed here (`write`), each on disk as soon as it is complete; the
+            // writer's own limit is set above ours so it never holds two.
+            .chunk_size(Some(options.chunk_bytes.saturating_mul(2)))
             .profile("ros2")
             .library("ember")
             // Each chunk is built in memory and written whole, followed by a provisional end
@@ -156,6 +165,8 @@ impl SessionWriter {
             sequence: 0,
             opened: Instant::now(),
             bytes: 0,
+            unflushed: 0,
+            chunk_bytes: options.chunk_bytes,
             path: path.to_path_buf(),
         })
     }
@@ -176,7 +187,28 @@ impl SessionWriter {
         };
         self.writer.write_to_known_channel(&header, data)?;
         self.bytes += data.len() as u64;
+        self.unflushed += data.len() as u64;
+        if self.unflushed >= self.chunk_bytes {
+            self.flush()?;
+        }
         Ok(())
+    }
+
+    /// Closes the current chunk and puts it on disk (followed by a provisional end).
+    fn flush(&mut self) -> anyhow::Result<()> {
+        self.unflushed = 0;
+        self.writer.flush()?;
+        Ok(())
+    }
+
+    /// Gives the file up after a failed write: it ends after its last complete chunk.
+    fn abandon(self) {
+        if let Err(e) = self.writer.into_inner().abandon() {
+            error!(
+                "cutting {} after the failure failed: {e}",
+                self.path.display()
+            );
+        }
     }
 
     fn finish(mut self) {
@@ -201,50 +233,135 @@ fn write_record(w: &mut SessionWriter, (recv_ns, event): Record) -> anyhow::Resu
     Ok(n)
 }
 
+/// Where records go: a file, or nowhere while a failure (a full disk) lasts.
+enum Output {
+    Writing(Box<SessionWriter>),
+    /// Records are dropped (counted) until a new file opens, tried at `retry_at`.
+    Paused {
+        retry_at: Instant,
+        backoff: Duration,
+    },
+}
+
+/// The first and the longest wait before opening a new file after a failure.
+const RETRY_FIRST: Duration = Duration::from_millis(100);
+const RETRY_MAX: Duration = Duration::from_secs(2);
+
+/// Bytes free for an unprivileged writer on the file system holding `dir` (None: unknown).
+fn free_bytes(dir: &Path) -> Option<u64> {
+    use std::os::unix::ffi::OsStrExt;
+    let path = std::ffi::CString::new(dir.as_os_str().as_bytes()).ok()?;
+    let mut st: libc::statvfs = unsafe { std::mem::zeroed() };
+    // SAFETY: `path` is a NUL-terminated string and `st` a valid statvfs to fill.
+    match unsafe { libc::statvfs(path.as_ptr(), &mut st) } {
+        0 => Some(st.f_bavail as u64 * st.f_frsize as u64),
+        _ => None,
+    }
+}
+
+impl Output {
+    /// Gives the file up after `e` and pauses (one log line per pause).
+    fn fail(&mut self, e: anyhow::Error, stats: &RecorderStats) {
+        if let Output::Writing(_) = self {
+            error!("recording paused: {e:#}; records are dropped (counted) until it resumes");
+            stats.failures.fetch_add(1, Ordering::Relaxed);
+            stats.failing.store(true, Ordering::Relaxed);
+            let paused = Output::Paused {
+                retry_at: Instant::now() + RETRY_FIRST,
+                backoff: RETRY_FIRST,
+            };
+            if let Output::Writing(w) = std::mem::replace(self, paused) {
+                w.abandon();
+            }
+        }
+    }
+}
+
 fn run(
     rx: Receiver<Record>,
     first: SessionWriter,
     options: RecorderOptions,
     stats: Arc<RecorderStats>,
 ) {
-    let mut writer = first;
+    let mut output = Output::Writing(Box::new(first));
     let mut index = 0;
     let mut last_flush = Instant::now();
     loop {
-        match rx.recv_timeout(Duration::from_millis(200)) {
-            Ok(r) => match write_record(&mut writer, r) {
-                Ok(bytes) => {
-                    stats.written.fetch_add(1, Ordering::Relaxed);
-                    stats.bytes.fetch_add(bytes, Ordering::Relaxed);
-                }
-                Err(e) => {
-                    error!("recording failed: {e}");
+        match rx.recv_timeout(Duration::from_millis(100)) {
+            Ok(r) => match &mut output {
+                Output::Writing(w) => match write_record(w, r) {
+                    Ok(bytes) => {
+                        stats.written.fetch_add(1, Ordering::Relaxed);
+                        stats.bytes.fetch_add(bytes, Ordering::Relaxed);
+                    }
+                    Err(e) => {
+                        stats.dropped.fetch_add(1, Ordering::Relaxed);
+                        output.fail(e, &stats);
+                    }
+                },
+                Output::Paused { .. } => {
                     stats.dropped.fetch_add(1, Ordering::Relaxed);
                 }
             },
             Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
             Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => break,
         }
-        // Finish a chunk at least every second: what a crash leaves behind stays readable.
-        if last_flush.elapsed() >= Duration::from_secs(1) {
-            if let Err(e) = writer.writer.flush() {
-                error!("flushing the recording failed: {e}");
-            }
-            last_flush = Instant::now();
-        }
-        if writer.bytes >= options.max_file_bytes
-            || writer.opened.elapsed() >= options.max_file_duration
-        {
-            index += 1;
-            let path = file_name(&options.dir, index);
-            match SessionWriter::open(&path, &options) {
-                Ok(next) => {
-                    std::mem::replace(&mut writer, next).finish();
-                    *stats.current.lock().expect("recorder path lock") = path;
+        let rotate = match &mut output {
+            Output::Writing(w) => {
+                // Finish a chunk at least every second: what a crash leaves stays readable.
+                if last_flush.elapsed() >= Duration::from_secs(1) {
+                    last_flush = Instant::now();
+                    if let Err(e) = w.flush() {
+                        output.fail(e, &stats);
+                        continue;
+                    }
                 }
-                Err(e) => error!("cannot rotate the recording: {e:#}"),
+                w.bytes >= options.max_file_bytes || w.opened.elapsed() >= options.max_file_duration
+            }
+            // Resume only with room for a chunk: a file opened on a disk still full would
+            // fail again at its first chunk.
+            Output::Paused { retry_at, backoff } if Instant::now() >= *retry_at => {
+                let room = free_bytes(&options.dir).is_none_or(|b| b >= options.chunk_bytes);
+                if !room {
+                    *backoff = (*backoff * 2).min(RETRY_MAX);
+                    *retry_at = Instant::now() + *backoff;
+                }
+                room
+            }
+            Output::Paused { .. } => false,
+        };
+        if !rotate {
+            continue;
+        }
+        // A new file: rotation, or a retry after a failure.
+        index += 1;
+        let path = file_name(&options.dir, index);
+        match SessionWriter::open(&path, &options) {
+            Ok(next) => {
+                if let Output::Writing(done) =
+                    std::mem::replace(&mut output, Output::Writing(Box::new(next)))
+                {
+                    done.finish();
+                } else {
+                    info!("recording resumed in {}", path.display());
+                    stats.failing.store(false, Ordering::Relaxed);
+                }
+                *stats.current.lock().expect("recorder path lock") = path;
+            }
+            Err(e) => {
+                // The half-made file goes: it holds no message.
+                std::fs::remove_file(&path).ok();
+                match &mut output {
+                    Output::Writing(_) => output.fail(e.context("cannot rotate"), &stats),
+                    Output::Paused { retry_at, backoff } => {
+                        *backoff = (*backoff * 2).min(RETRY_MAX);
+                        *retry_at = Instant::now() + *backoff;
+                    }
+                }
             }
         }
     }
-    writer.finish();
+    if let Output::Writing(w) = output {
+        w.finish();
+    }
 }

@@ -45,6 +45,15 @@ impl TailFile {
         }
     }
 
+    /// Gives the file up after a failed write (a full disk): cuts whatever the failed write
+    /// left after the last complete chunk and ends the file there, so it reads to that chunk.
+    /// Cutting frees the space the end needs.
+    pub fn abandon(self) -> io::Result<()> {
+        self.file.set_len(self.written)?;
+        self.file.write_all_at(&PROVISIONAL_END, self.written)?;
+        self.file.sync_all()
+    }
+
     /// Writes what is pending without a provisional end (the writer has written the real one)
     /// and cuts the file there.
     pub fn finish(mut self) -> io::Result<()> {

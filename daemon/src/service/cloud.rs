@@ -1,6 +1,7 @@
 //! The cloud service: depth point clouds in the sensor frame with the sensor's pose, read in
 //! place from shared memory.
 
+use super::drops::Gaps;
 use super::rejection::Rejection;
 use ember_engine::scene::pose_from_xyz_xyzw;
 use ember_engine::Pose;
@@ -44,12 +45,19 @@ impl CloudPort {
     }
 
     /// The next waiting cloud, checked (at most `max_points` points); None when none waits.
-    pub fn receive(&self, max_points: usize) -> Option<Result<CloudInput, Rejection>> {
+    /// `gaps` counts the clouds its publisher sent that never arrived.
+    pub fn receive(
+        &self,
+        max_points: usize,
+        gaps: &mut Gaps,
+    ) -> Option<(u64, Result<CloudInput, Rejection>)> {
         let sample = self.0.receive().ok().flatten()?;
-        Some(
-            decode(sample.user_header(), sample.payload().len(), max_points)
-                .map(|pose| CloudInput { sample, pose }),
-        )
+        let h = sample.user_header();
+        let dropped = gaps.saw(sample.header().publisher_id().value(), h.seq);
+        Some((
+            dropped,
+            decode(h, sample.payload().len(), max_points).map(|pose| CloudInput { sample, pose }),
+        ))
     }
 }
 

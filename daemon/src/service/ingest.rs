@@ -11,12 +11,14 @@ use crate::recorder::Recorder;
 use crate::world::World;
 use ember_engine::robot::Robot;
 use ember_sdk::client::now_ns;
+use ember_sdk::monitor::InputsDoc;
 use ember_sdk::recording::Event;
 use ember_sdk::wire;
 use iceoryx2::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
+use tracing::warn;
 
 /// What the ingest thread works with.
 pub struct Ingest {
@@ -49,10 +51,12 @@ impl Ingest {
         let mut world = World::new(&self.config);
         let max_extent = self.config.map.max_object_extent();
         let max_objects = self.config.limits.objects;
+        let (mut cloud_gaps, mut object_gaps, mut joint_gaps) = Default::default();
         let _ = ready.send(());
         while !self.stop.load(Ordering::Relaxed) {
             let mut changed = false;
-            while let Some(input) = joints.receive(&self.robot) {
+            while let Some((dropped, input)) = joints.receive(&self.robot, &mut joint_gaps) {
+                self.dropped(dropped, |i| &mut i.dropped_joints);
                 match input {
                     Ok(js) => {
                         self.record(
@@ -79,7 +83,9 @@ impl Ingest {
                     Err(why) => self.stats.rejected(&why),
                 }
             }
-            while let Some((update, input)) = objects.receive(max_extent) {
+            while let Some((dropped, update, input)) = objects.receive(max_extent, &mut object_gaps)
+            {
+                self.dropped(dropped, |i| &mut i.dropped_objects);
                 // Recorded as received, whether or not it applies.
                 if Rejection::check_version("object update", update.version).is_ok() {
                     self.record(now_ns(), Event::Object(update));
@@ -109,7 +115,11 @@ impl Ingest {
             }
             // One cloud per round: objects and joint states never wait behind a cloud stream
             // that arrives as fast as the map takes it.
-            match clouds.receive(self.config.map.max_points) {
+            let cloud = clouds.receive(self.config.map.max_points, &mut cloud_gaps);
+            if let Some((dropped, _)) = &cloud {
+                self.dropped(*dropped, |i| &mut i.dropped_clouds);
+            }
+            match cloud.map(|(_, c)| c) {
                 Some(Ok(cloud)) => {
                     let h = *cloud.header();
                     let recv_ns = now_ns();
@@ -150,6 +160,20 @@ impl Ingest {
             }
         }
         Ok(())
+    }
+
+    /// Counts `n` inputs of one kind (`counter`) dropped before they reached the daemon.
+    fn dropped(&self, n: u64, counter: impl FnOnce(&mut InputsDoc) -> &mut u64) {
+        if n > 0 {
+            let mut st = self.stats.inner.lock().expect("stats lock");
+            let total = counter(&mut st.inputs);
+            let before = *total;
+            *total += n;
+            // One line each time the count passes a power of two: a flood does not flood the log.
+            if before.checked_ilog2() != total.checked_ilog2() {
+                warn!("inputs dropped before the daemon read them: {total} of this kind so far");
+            }
+        }
     }
 
     /// Records `event`, received at `recv_ns`, when recording.

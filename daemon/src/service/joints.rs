@@ -1,5 +1,6 @@
 //! The joint-state service: the robot's measured joint positions (planning-group order).
 
+use super::drops::Gaps;
 use super::rejection::Rejection;
 use ember_engine::robot::Robot;
 use ember_sdk::services::{self, Limits, Open};
@@ -29,10 +30,16 @@ impl JointsPort {
         Ok(JointsPort(sub))
     }
 
-    /// The next waiting joint state, decoded for `robot`; None when none waits.
-    pub fn receive(&self, robot: &Robot) -> Option<Result<JointsInput, Rejection>> {
+    /// The next waiting joint state, decoded for `robot`; None when none waits. `gaps` counts
+    /// the states its publisher sent that never arrived.
+    pub fn receive(
+        &self,
+        robot: &Robot,
+        gaps: &mut Gaps,
+    ) -> Option<(u64, Result<JointsInput, Rejection>)> {
         let s = self.0.receive().ok().flatten()?;
-        Some(decode(s.payload(), robot))
+        let dropped = gaps.saw(s.header().publisher_id().value(), s.payload().seq);
+        Some((dropped, decode(s.payload(), robot)))
     }
 }
 

@@ -2,11 +2,14 @@
 //! the wire payload into engine terms or a typed [`Rejection`]:
 //! - [`cloud`], [`objects`], [`joints`]: sensor and world inputs, read by the [`ingest`] thread,
 //!   which folds them into the world model and publishes snapshots;
-//! - [`plan`]: plan requests, answered on the main thread; [`status`]: the counters.
+//! - [`plan`]: plan requests, taken on the service thread and planned by a worker pool;
+//!   [`cancel`]: cancels plans in flight by request id; [`status`]: the counters.
 //!
 //! `command/run.rs` only wires them together.
 
+pub mod cancel;
 pub mod cloud;
+pub mod drops;
 pub mod ingest;
 pub mod joints;
 pub mod objects;
@@ -29,16 +32,18 @@ pub type SnapshotCell = Arc<Mutex<Arc<Snapshot>>>;
 #[derive(Debug, Default)]
 pub struct Stats {
     pub inner: Mutex<StatsInner>,
+    /// The plans taken and not yet answered.
+    pub in_flight: plan::in_flight::InFlight,
 }
 
 impl Stats {
-    /// Counts an answered request (and the databases' sizes); returns its sequence number.
-    pub fn planned(&self, h: &PlanResponseHeader, experience: &Experience) -> u64 {
+    /// Counts an answered request; returns its sequence number.
+    pub fn planned(&self, h: &PlanResponseHeader) -> u64 {
         let mut st = self.inner.lock().expect("stats lock");
         st.plans.total += 1;
         st.plans.solved += (h.status == 0) as u64;
+        st.plans.cancelled += (h.status == ember_sdk::Status::Cancelled as u32) as u64;
         st.plan_latency_us.push(h.total_us);
-        st.set_experience(experience);
         st.plans.total
     }
 

@@ -1,6 +1,7 @@
 //! The object service: object updates (add, move, remove) from clients, decoded into world
 //! objects.
 
+use super::drops::Gaps;
 use super::rejection::Rejection;
 use ember_engine::collision::Shape;
 use ember_engine::scene::pose_from_xyz_xyzw;
@@ -34,14 +35,17 @@ impl ObjectsPort {
     }
 
     /// The next waiting update as received (for the recording) and decoded (objects reaching
-    /// farther than `max_extent` metres refused); None when none waits.
+    /// farther than `max_extent` metres refused); None when none waits. `gaps` counts the
+    /// updates its publisher sent that never arrived.
     pub fn receive(
         &self,
         max_extent: f64,
-    ) -> Option<(wire::ObjectUpdate, Result<ObjectInput, Rejection>)> {
+        gaps: &mut Gaps,
+    ) -> Option<(u64, wire::ObjectUpdate, Result<ObjectInput, Rejection>)> {
         let s = self.0.receive().ok().flatten()?;
         let u = *s.payload();
-        Some((u, decode(&u, max_extent)))
+        let dropped = gaps.saw(s.header().publisher_id().value(), u.seq);
+        Some((dropped, u, decode(&u, max_extent)))
     }
 }
 
@@ -123,6 +127,7 @@ pub fn update_of(object: &Object) -> wire::ObjectUpdate {
         id: wire::name(&object.name),
         dims,
         pose: [t[0], t[1], t[2], q[0], q[1], q[2], q[3]],
+        seq: 0,
     }
 }
 

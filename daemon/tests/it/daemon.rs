@@ -37,7 +37,7 @@ impl Daemon {
         Self::start_with(instance, db_dir, extra)
     }
 
-    fn start_with(instance: String, db_dir: PathBuf, extra: &[&str]) -> Daemon {
+    pub fn start_with(instance: String, db_dir: PathBuf, extra: &[&str]) -> Daemon {
         let (child, ready) = launch(
             Command::new(env!("CARGO_BIN_EXE_ember"))
                 .args([
@@ -50,7 +50,10 @@ impl Daemon {
                     db_dir.join("recordings").to_str().unwrap(),
                 ])
                 .args(extra)
-                .stderr(Stdio::null()),
+                .stderr(match std::env::var_os("EMBER_TEST_DAEMON_LOG") {
+                    Some(_) => Stdio::inherit(),
+                    None => Stdio::null(),
+                }),
         )
         .expect("ember run starts");
         assert_eq!(ready.instance, instance);
@@ -275,6 +278,7 @@ fn every_bad_input_gets_its_own_status_and_the_daemon_keeps_serving() {
         pose: [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
         position_tolerance: 0.0,
         orientation_tolerance: 0.0,
+        request_id: 0,
     };
     let good: Vec<f64> = TUCK.iter().chain(FREE_GOAL.iter()).copied().collect();
     let t = Duration::from_secs(20);

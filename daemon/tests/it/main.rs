@@ -5,6 +5,7 @@ mod demo;
 mod monitor;
 mod plan;
 mod recording;
+mod reliability;
 mod robot;
 
 use std::path::PathBuf;

@@ -154,6 +154,21 @@ impl<'a> GlobalSampler<'a> {
     pub fn retrieved_entries(&self) -> usize {
         self.entries
     }
+
+    /// The same sampler owning what it borrowed (copies the retrieved local samplers), so
+    /// the databases may change while it plans.
+    pub fn into_owned(self) -> GlobalSampler<'static> {
+        GlobalSampler {
+            samplers: self
+                .samplers
+                .into_iter()
+                .map(|s| Cow::Owned(s.into_owned()))
+                .collect(),
+            entries: self.entries,
+            sigma: self.sigma,
+            lambda: self.lambda,
+        }
+    }
 }
 
 impl Sampler for GlobalSampler<'_> {

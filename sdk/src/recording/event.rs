@@ -116,6 +116,7 @@ impl From<&ObjectUpdate> for wire::ObjectUpdate {
             id: wire::name(&o.id),
             dims: o.dims,
             pose: o.pose.to_wire(),
+            seq: 0,
         }
     }
 }

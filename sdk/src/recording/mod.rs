@@ -101,7 +101,7 @@ pub fn schemas() -> Vec<(&'static str, String)> {
         (
             "ember_msgs/msg/PlanRequest",
             with_deps(
-                "# The plan request as received: values = start, then goal_count goal configurations.\nstd_msgs/Header header\nuint32 version\nuint32 dof\nuint32 goal_kind\nuint32 goal_count\nuint32 method\nuint32 flags\nfloat64 time_limit_s\nuint64 seed\nfloat64[7] pose\nfloat64 position_tolerance\nfloat64 orientation_tolerance\nfloat64[] values\n",
+                "# The plan request as received: values = start, then goal_count goal configurations.\nstd_msgs/Header header\nuint32 version\nuint32 dof\nuint32 goal_kind\nuint32 goal_count\nuint32 method\nuint32 flags\nfloat64 time_limit_s\nuint64 seed\nfloat64[7] pose\nfloat64 position_tolerance\nfloat64 orientation_tolerance\nuint64 request_id\nfloat64[] values\n",
                 &[HEADER, TIME],
             ),
         ),
@@ -289,6 +289,65 @@ pub struct PlanRequest {
     pub header: Header,
     pub request: crate::wire::PlanRequestHeader,
     pub values: Vec<f64>,
+}
+
+impl PlanRequest {
+    /// Decodes a recorded request whose channel carries `schema` (ros2msg text): files of
+    /// protocol version 1 (no `request_id`) are read too, their accepted requests (version 1)
+    /// brought to the current version, so a replay is answered as it was then.
+    pub fn decode(data: &[u8], schema: &[u8]) -> Result<PlanRequest, String> {
+        let current = String::from_utf8_lossy(schema).contains("uint64 request_id");
+        if current {
+            return decode(data);
+        }
+        let old: PlanRequestV1 = decode(data)?;
+        let h = old.request;
+        Ok(PlanRequest {
+            header: old.header,
+            request: crate::wire::PlanRequestHeader {
+                version: match h.version {
+                    1 => crate::wire::PROTOCOL_VERSION,
+                    v => v,
+                },
+                dof: h.dof,
+                goal_kind: h.goal_kind,
+                goal_count: h.goal_count,
+                method: h.method,
+                flags: h.flags,
+                time_limit_s: h.time_limit_s,
+                seed: h.seed,
+                pose: h.pose,
+                position_tolerance: h.position_tolerance,
+                orientation_tolerance: h.orientation_tolerance,
+                request_id: 0,
+            },
+            values: old.values,
+        })
+    }
+}
+
+/// `ember_msgs/msg/PlanRequest` as protocol version 1 recorded it.
+#[derive(Deserialize)]
+struct PlanRequestV1 {
+    header: Header,
+    request: PlanRequestHeaderV1,
+    values: Vec<f64>,
+}
+
+/// The version 1 request header (no `request_id`).
+#[derive(Deserialize)]
+struct PlanRequestHeaderV1 {
+    version: u32,
+    dof: u32,
+    goal_kind: u32,
+    goal_count: u32,
+    method: u32,
+    flags: u32,
+    time_limit_s: f64,
+    seed: u64,
+    pose: [f64; 7],
+    position_tolerance: f64,
+    orientation_tolerance: f64,
 }
 
 /// `ember_msgs/msg/PlanResponse`.

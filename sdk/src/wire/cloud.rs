@@ -35,6 +35,9 @@ pub struct CloudHeader {
     pub frame_id: super::Name,
     /// Sensor pose in the robot base frame: x, y, z, qx, qy, qz, qw.
     pub sensor_pose: [f64; 7],
+    /// The publisher's message number, counting from 1 (0: not numbered); the daemon counts
+    /// the numbers it never saw as dropped.
+    pub seq: u64,
 }
 
 impl Point {

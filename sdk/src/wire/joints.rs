@@ -18,4 +18,7 @@ pub struct JointState {
     pub stamp_ns: u64,
     /// Positions, radians or metres, group order.
     pub positions: [f64; MAX_JOINTS],
+    /// The publisher's message number, counting from 1 (0: not numbered); the daemon counts
+    /// the numbers it never saw as dropped.
+    pub seq: u64,
 }

@@ -2,12 +2,14 @@
 //! and use metres, seconds (nanosecond stamps since the Unix epoch), the robot base frame and
 //! quaternions `[x, y, z, w]`. Poses are `[x, y, z, qx, qy, qz, qw]`.
 
+pub mod cancel;
 pub mod cloud;
 pub mod joints;
 pub mod objects;
 pub mod plan;
 pub mod status;
 
+pub use cancel::{CancelReply, CancelRequest};
 pub use cloud::{CloudHeader, Point, MAX_CLOUD_POINTS};
 pub use joints::{JointState, MAX_JOINTS};
 pub use objects::{ObjectUpdate, ShapeKind};
@@ -18,7 +20,7 @@ pub use plan::{
 pub use status::StatusReply;
 
 /// Version of the protocol these types define.
-pub const PROTOCOL_VERSION: u32 = 1;
+pub const PROTOCOL_VERSION: u32 = 2;
 
 /// A fixed-size, NUL-padded UTF-8 string.
 pub type Name = [u8; 32];

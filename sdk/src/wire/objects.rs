@@ -36,4 +36,7 @@ pub struct ObjectUpdate {
     pub dims: [f64; 3],
     /// Pose in the robot base frame: x, y, z, qx, qy, qz, qw.
     pub pose: [f64; 7],
+    /// The publisher's message number, counting from 1 (0: not numbered); the daemon counts
+    /// the numbers it never saw as dropped.
+    pub seq: u64,
 }

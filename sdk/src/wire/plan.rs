@@ -156,6 +156,8 @@ pub struct PlanRequestHeader {
     pub position_tolerance: f64,
     /// Pose goal orientation tolerance, radians.
     pub orientation_tolerance: f64,
+    /// The client's id for this request (0: none), for cancelling it on the cancel service.
+    pub request_id: u64,
 }
 
 /// The response header.

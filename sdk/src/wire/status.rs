@@ -44,4 +44,20 @@ pub struct StatusReply {
     pub recorded: u64,
     /// Records dropped because the recorder fell behind.
     pub recording_dropped: u64,
+    /// Plans being planned or waiting for a worker.
+    pub plans_in_flight: u64,
+    /// Age of the oldest plan in flight, ms (0 when none).
+    pub oldest_plan_ms: f64,
+    /// Plans answered `cancelled` (by a cancel request or the daemon stopping).
+    pub cancelled: u64,
+    /// Clouds dropped before the daemon read them (its buffer was full).
+    pub dropped_clouds: u64,
+    /// Object updates dropped before the daemon read them.
+    pub dropped_objects: u64,
+    /// Joint states dropped before the daemon read them.
+    pub dropped_joints: u64,
+    /// Times recording failed (a full disk, an I/O error) and paused.
+    pub recording_failures: u64,
+    /// 1 while recording is paused by a failure (retrying), else 0.
+    pub recording_failing: u64,
 }

@@ -13,7 +13,7 @@ use ember_sdk::recording::{self, Event};
 use ember_sdk::wire::plan::MAX_PLAN_VALUES;
 use ember_sdk::wire::{self, PlanRequestHeader, PlanResponseHeader, TrajectoryBlock};
 use ember_sdk::Status;
-use std::sync::Arc;
+use std::sync::{Arc, RwLock};
 use std::time::Instant;
 
 /// An answer before it goes on the wire.
@@ -38,7 +38,7 @@ impl Answer {
 }
 
 /// An answer that carries no path: a refusal or a failure.
-fn fail(status: Status, message: impl AsRef<str>) -> Answer {
+pub fn fail(status: Status, message: impl AsRef<str>) -> Answer {
     let mut header = PlanResponseHeader {
         status: status as u32,
         ..Default::default()
@@ -94,12 +94,14 @@ pub fn answer(
     config: &Config,
     robot: &Robot,
     snapshot: &SnapshotCell,
-    experience: &Experience,
+    experience: &RwLock<Experience>,
     cancel: &Cancel,
     h: &PlanRequestHeader,
     values: &[f64],
 ) -> (Answer, Option<Lesson>) {
     let t0 = Instant::now();
+    // The databases are read only while retrieving: learning and saving wait for no plan.
+    let experience = experience.read().expect("experience lock");
     let mut d = match decode(config, robot, experience.default_method(), h, values) {
         Ok(d) => d,
         Err(why) => return (fail(why.status(), why.to_string()), None),
@@ -107,7 +109,10 @@ pub fn answer(
     d.request.params.cancel = cancel.clone();
     let snap = snapshot.lock().expect("snapshot lock").clone();
     let t_ret = Instant::now();
-    let mut sampler = experience.sampler_for(d.method, &snap.pairs, &snap.octoboxes);
+    let mut sampler = experience
+        .sampler_for(d.method, &snap.pairs, &snap.octoboxes)
+        .into_owned();
+    drop(experience);
     let local_samplers = sampler.local_samplers() as u32;
     let retrieval_us = t_ret.elapsed().as_secs_f64() * 1e6;
     let outcome = planning::plan(robot, &snap.env, &d.request, &mut sampler);

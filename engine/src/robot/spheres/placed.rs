@@ -58,6 +58,11 @@ impl PlacedSpheres {
             .any(|(bound, balls)| inside(p, bound) && balls.iter().any(|b| inside(p, b)))
     }
 
+    /// Every ball of every link.
+    pub fn balls(&self) -> impl Iterator<Item = &Ball> {
+        self.links.iter().flat_map(|(_, balls)| balls)
+    }
+
     /// True when some link's bounding ball comes within `reach` of `c`.
     pub fn bounds_near(&self, c: [f64; 3], reach: f64) -> bool {
         self.links

@@ -1,0 +1,90 @@
+//! The planning workers: each takes jobs from the shared queue, answers them, hands the reply
+//! to the service thread, then records, reports and learns from the answer.
+
+use super::answer::fail;
+use super::{answer, answer_events, message, Job, PlanContext, Reply};
+use crate::monitor::docs::plan_summary;
+use ember_engine::experience::Experience;
+use ember_sdk::client::now_ns;
+use ember_sdk::recording::{self, Event};
+use ember_sdk::Status;
+use std::panic::AssertUnwindSafe;
+use std::sync::mpsc::{Receiver, Sender};
+use std::sync::{Mutex, RwLock};
+use tracing::{error, warn};
+
+/// Held while a plan's events are queued, so each request is followed by its own response in
+/// the recording (replay pairs them) although workers finish in any order.
+static RECORDING_ORDER: Mutex<()> = Mutex::new(());
+
+/// Runs one worker until the job queue closes.
+pub fn work(
+    cx: &PlanContext,
+    experience: &RwLock<Experience>,
+    jobs: &Mutex<Receiver<Job>>,
+    replies: Sender<Reply>,
+) {
+    loop {
+        let job = match jobs.lock().expect("job queue lock").recv() {
+            Ok(job) => job,
+            Err(_) => return,
+        };
+        let (h, values) = (&job.header, &job.values[..]);
+        // A bug in planning answers this request `internal` and the worker serves on.
+        let answered = std::panic::catch_unwind(AssertUnwindSafe(|| {
+            answer(
+                cx.config,
+                cx.robot,
+                cx.snapshot,
+                experience,
+                &job.cancel,
+                h,
+                values,
+            )
+        }));
+        let (mut a, lesson) = answered.unwrap_or_else(|panic| {
+            let why = panic
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| panic.downcast_ref::<String>().cloned())
+                .unwrap_or_default();
+            error!("planning failed on an internal error: {why}");
+            (
+                fail(Status::Internal, format!("internal error: {why}")),
+                None,
+            )
+        });
+        // Time in the daemon, from receipt: waiting for a worker included.
+        a.header.total_us = job.received.elapsed().as_secs_f64() * 1e6;
+        let seq = cx.stats.planned(&a.header);
+        cx.stats.in_flight.finish(job.id);
+        if a.header.status != 0 {
+            warn!("plan request refused or failed: {}", message(&a.header));
+        }
+        let reply = Reply {
+            id: job.id,
+            header: a.header,
+            payload: a.payload(),
+        };
+        if replies.send(reply).is_err() {
+            return;
+        }
+        // The reply is out: recording, monitoring and learning never delay an answer.
+        if let Some(r) = cx.recorder {
+            let _in_order = RECORDING_ORDER.lock().expect("recording order lock");
+            let request = recording::PlanRequest::new(job.recv_ns, h, values);
+            r.record(job.recv_ns, Event::PlanRequest(request));
+            for event in answer_events(job.recv_ns, cx.robot, &a) {
+                r.record(now_ns(), event);
+            }
+        }
+        if let Some(m) = cx.monitor {
+            m.plan(plan_summary(&cx.config.instance, seq, job.recv_ns, h, &a));
+        }
+        if let Some(lesson) = lesson {
+            let mut experience = experience.write().expect("experience lock");
+            lesson.learn(cx.robot, &a.path, &mut experience);
+            cx.stats.learned(&experience);
+        }
+    }
+}
