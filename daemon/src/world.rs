@@ -3,7 +3,7 @@
 
 use crate::config::Config;
 use ember_engine::experience::flame::{octoboxes, Octobox};
-use ember_engine::experience::spark::{spark_pairs_of, SparkPair};
+use ember_engine::experience::spark::{PairSet, PairsSnapshot};
 use ember_engine::experience::ExperienceParams;
 use ember_engine::robot::spheres::PlacedSpheres;
 use ember_engine::robot::Robot;
@@ -17,7 +17,7 @@ pub struct Snapshot {
     /// Objects as a scene (SPARK's input).
     pub scene: Scene,
     /// SPARK pairs of the objects.
-    pub pairs: Vec<SparkPair>,
+    pub pairs: PairsSnapshot,
     /// The occupancy map (FLAME's input; an obstacle too when configured).
     pub map: Arc<OccupancyMap>,
     /// The map's non-empty octoboxes (FLAME's primitives), extracted once per cloud.
@@ -31,11 +31,12 @@ pub struct Snapshot {
 /// The mutable world (owned by the ingest thread).
 pub struct World {
     scene: Scene,
-    pairs: Vec<SparkPair>,
+    pairs: PairSet,
+    /// The objects for collision checking (kept with the scene, not rebuilt per snapshot).
+    env: Environment,
     map: Arc<OccupancyMap>,
     octoboxes: Arc<Vec<Octobox>>,
     joints: Option<Vec<f64>>,
-    params: ExperienceParams,
     use_map: bool,
     padding: f64,
     objects_version: u64,
@@ -46,7 +47,8 @@ impl World {
     pub fn new(config: &Config) -> Self {
         World {
             scene: Scene::default(),
-            pairs: Vec::new(),
+            pairs: PairSet::new(&ExperienceParams::default()),
+            env: Environment::new(),
             map: Arc::new(OccupancyMap::new(MapParams {
                 resolution: config.map.resolution,
                 max_range: config.map.max_range,
@@ -56,7 +58,6 @@ impl World {
             })),
             octoboxes: Arc::default(),
             joints: None,
-            params: ExperienceParams::default(),
             use_map: config.planner.use_map,
             padding: config.map.self_filter_padding,
             objects_version: 0,
@@ -65,22 +66,20 @@ impl World {
 
     /// Adds or moves an object; only its SPARK pairs are recomputed.
     pub fn upsert_object(&mut self, object: Object) {
-        let name = object.name.clone();
         self.objects_version += 1;
-        match self.scene.objects.iter().position(|o| o.name == name) {
-            Some(i) => self.scene.objects[i] = object,
-            None => self.scene.objects.push(object),
-        }
-        self.pairs
-            .retain(|p| p.names[0] != name && p.names[1] != name);
-        let i = self
+        self.pairs.upsert(&object);
+        self.env
+            .upsert(object.clone())
+            .expect("objects were validated on arrival");
+        match self
             .scene
             .objects
             .iter()
-            .position(|o| o.name == name)
-            .expect("just inserted");
-        self.pairs
-            .extend(spark_pairs_of(&self.scene, i, &self.params));
+            .position(|o| o.name == object.name)
+        {
+            Some(i) => self.scene.objects[i] = object,
+            None => self.scene.objects.push(object),
+        }
     }
 
     /// Removes an object and its pairs; false when unknown.
@@ -93,8 +92,8 @@ impl World {
         let before = self.scene.objects.len();
         self.objects_version += 1;
         self.scene.objects.retain(|o| o.name != name);
-        self.pairs
-            .retain(|p| p.names[0] != name && p.names[1] != name);
+        self.pairs.remove(name);
+        let _ = self.env.remove(name);
         self.scene.objects.len() != before
     }
 
@@ -126,14 +125,13 @@ impl World {
 
     /// A snapshot of the current state.
     pub fn snapshot(&self) -> Snapshot {
-        let mut env = Environment::from_objects(self.scene.objects.iter().cloned())
-            .expect("objects were validated on arrival");
+        let mut env = self.env.clone();
         if self.use_map {
             env.set_map(Some(self.map.clone()));
         }
         Snapshot {
             scene: self.scene.clone(),
-            pairs: self.pairs.clone(),
+            pairs: self.pairs.snapshot(),
             map: self.map.clone(),
             octoboxes: self.octoboxes.clone(),
             env,

@@ -110,7 +110,7 @@ pub fn answer(
     let snap = snapshot.lock().expect("snapshot lock").clone();
     let t_ret = Instant::now();
     let mut sampler = experience
-        .sampler_for(d.method, &snap.pairs, &snap.octoboxes)
+        .sampler_for(d.method, snap.pairs.pairs(), &snap.octoboxes)
         .into_owned();
     drop(experience);
     let local_samplers = sampler.local_samplers() as u32;

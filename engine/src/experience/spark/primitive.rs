@@ -155,13 +155,13 @@ impl SparkPair {
 }
 
 /// An object's bounding box, as a primitive and as a shape.
-fn box_of(o: &Object) -> (BoxPrimitive, Shape) {
+pub(crate) fn box_of(o: &Object) -> (BoxPrimitive, Shape) {
     let b = BoxPrimitive::of(&o.shape, &o.pose);
     (b, Shape::cuboid(b.size))
 }
 
 /// The pair of `a` and `b` when their boxes are closer than `d_pairs`.
-fn pair_if_close(
+pub(crate) fn pair_if_close(
     (oa, (ba, sa)): (&Object, &(BoxPrimitive, Shape)),
     (ob, (bb, sb)): (&Object, &(BoxPrimitive, Shape)),
     params: &ExperienceParams,
@@ -176,22 +176,6 @@ fn pair_if_close(
         b: *bb,
         names: [oa.name.clone(), ob.name.clone()],
     })
-}
-
-/// The SPARK pairs that object `index` of `scene` forms with every other object: what an
-/// update of that one object changes.
-pub fn spark_pairs_of(scene: &Scene, index: usize, params: &ExperienceParams) -> Vec<SparkPair> {
-    let Some(o) = scene.objects.get(index) else {
-        return Vec::new();
-    };
-    let bo = box_of(o);
-    scene
-        .objects
-        .iter()
-        .enumerate()
-        .filter(|&(j, _)| j != index)
-        .filter_map(|(_, other)| pair_if_close((o, &bo), (other, &box_of(other)), params))
-        .collect()
 }
 
 /// Every pair of scene objects closer than `d_pairs` (exact distance between their bounding
