@@ -10,6 +10,8 @@
 pub mod cancel;
 pub mod cloud;
 pub mod drops;
+#[cfg(test)]
+mod fuzz;
 pub mod ingest;
 pub mod joints;
 pub mod objects;

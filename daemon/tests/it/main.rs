@@ -2,6 +2,7 @@
 
 mod daemon;
 mod demo;
+mod fuzz;
 mod monitor;
 mod plan;
 mod recording;

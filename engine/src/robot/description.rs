@@ -478,6 +478,21 @@ impl RobotSpec {
                 element: "spheres".into(),
                 message,
             })?;
+        for link in &robot.links {
+            let protrusion = params.protrusion_of(&link.name);
+            let area = super::spheres::fit::surface_area(&link.collision);
+            let samples = area / (protrusion * protrusion);
+            if samples.is_nan() || samples > super::spheres::fit::MAX_FIT_SAMPLES {
+                return Err(LoadRobotError::Element {
+                    path: self.robot.clone(),
+                    element: format!("link '{}'", link.name),
+                    message: format!(
+                        "its collision geometry has {area:.3e} m² of surface, too large to fit                          spheres at {protrusion} m protrusion ({samples:.1e} surface samples, at                          most {:.0e}); is a mesh in millimetres without                          scale=\"0.001 0.001 0.001\"?",
+                        super::spheres::fit::MAX_FIT_SAMPLES
+                    ),
+                });
+            }
+        }
         robot.exact = Arc::new(ExactModel::build(&robot.links));
         if compute_pairs {
             let skipped = super::self_collision::skipped_pairs(

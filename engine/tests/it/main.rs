@@ -3,6 +3,7 @@
 mod collision;
 mod experience;
 mod fk;
+mod fuzz;
 mod map;
 mod moveit;
 mod planning;

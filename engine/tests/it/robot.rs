@@ -428,3 +428,26 @@ fn a_moveit_joint_limits_file_overrides_the_description() {
     );
     let _ = std::fs::remove_dir_all(dir);
 }
+
+#[test]
+fn a_millimetre_mesh_without_its_scale_is_refused_not_fitted() {
+    // Found by fuzzing: read as metres, the 0.4 m link is 400 m long and fitting its spheres
+    // asked for tens of GB.
+    let bot = testbot::write("noscale");
+    let urdf = std::fs::read_to_string(&bot.urdf).unwrap();
+    let broken = urdf.replace(r#" scale="0.001 0.001 0.001""#, "");
+    assert_ne!(broken, urdf);
+    let path = bot.dir.join("noscale.urdf");
+    std::fs::write(&path, broken).unwrap();
+    let e = RobotSpec {
+        robot: path.display().to_string(),
+        ..spec(&bot)
+    }
+    .load()
+    .expect_err("refused");
+    let text = e.to_string();
+    assert!(
+        text.contains("link 'link2'") && text.contains("millimetres"),
+        "{text}"
+    );
+}

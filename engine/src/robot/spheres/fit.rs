@@ -101,6 +101,21 @@ fn union_depth(parts: &[Part], p: [f64; 3]) -> f64 {
         .fold(f64::NEG_INFINITY, f64::max)
 }
 
+/// Most surface samples a link may need at its protrusion (`area / protrusion²`): beyond
+/// this the link is refused rather than fitted (a metre-sized link at 1 cm needs ~10⁵; a mesh
+/// in millimetres read as metres, ~10⁹ and tens of GB).
+pub const MAX_FIT_SAMPLES: f64 = 4.0e6;
+
+/// Surface area of a link's collision geometry (link frame), m².
+pub fn surface_area(shapes: &[LinkShape]) -> f64 {
+    shapes
+        .iter()
+        .map(Part::new)
+        .flat_map(|p| p.triangles)
+        .map(|t| triangle_area(&t))
+        .sum()
+}
+
 /// Spheres covering the surface of `shapes` (one link, link frame) with protrusion at most
 /// `protrusion`. Deterministic.
 pub fn fit(shapes: &[LinkShape], protrusion: f64) -> Vec<Sphere> {
