@@ -20,6 +20,22 @@ const MAX_WORKERS: usize = 64;
 /// The fastest status publication the config may ask for, Hz.
 const MAX_STATUS_HZ: f64 = 100.0;
 
+/// Parses `file_mode`: octal, owner read-write, not writable by others.
+fn parse_file_mode(text: &str) -> Result<u32, String> {
+    let mode = u32::from_str_radix(text, 8)
+        .ok()
+        .filter(|m| *m <= 0o777)
+        .ok_or_else(|| {
+            format!("key file_mode must be an octal mode such as \"0600\", got \"{text}\"")
+        })?;
+    if mode & 0o600 != 0o600 || mode & 0o002 != 0 {
+        return Err(format!(
+            "key file_mode must let the owner read and write and others not write, got \"{text}\""
+        ));
+    }
+    Ok(mode)
+}
+
 /// The embedded default configuration.
 pub const DEFAULT_TOML: &str = include_str!("../../config/emberd.toml");
 
@@ -39,6 +55,8 @@ pub struct Config {
     pub sphere_protrusion: f64,
     /// MoveIt joint_limits.yaml over the description's limits; empty for none.
     pub joint_limits: PathBuf,
+    /// Mode of the files emberd creates, octal text (see [`Config::file_mode`]).
+    pub file_mode: String,
     pub map: MapConfig,
     pub planner: PlannerConfig,
     pub trajectory: TrajectoryConfig,
@@ -230,7 +248,19 @@ impl Config {
         Ok(config)
     }
 
+    /// The mode of the files emberd creates (databases, recordings): `file_mode`, validated.
+    pub fn file_mode(&self) -> u32 {
+        parse_file_mode(&self.file_mode).expect("validated on load")
+    }
+
+    /// Gives `path` (a file emberd created) the configured mode.
+    pub fn apply_file_mode(&self, path: &Path) -> std::io::Result<()> {
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::set_permissions(path, std::fs::Permissions::from_mode(self.file_mode()))
+    }
+
     fn validate(&self) -> Result<(), String> {
+        parse_file_mode(&self.file_mode)?;
         let positive = |key: &str, v: f64| {
             if v.is_finite() && v > 0.0 {
                 Ok(())

@@ -30,6 +30,11 @@ fn save(config: &Config, experience: &mut Experience) {
         Ok(()) => info!("experience saved in {}", dir.display()),
         Err(e) => error!("saving the experience database failed: {e}"),
     }
+    for file in Experience::files(dir) {
+        if let Err(e) = config.apply_file_mode(&file) {
+            error!("setting the mode of {}: {e}", file.display());
+        }
+    }
 }
 
 /// A thread that sets `terminate` when SIGINT/SIGTERM arrive (iceoryx2's handler records them;
@@ -114,6 +119,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
             max_file_duration: Duration::from_secs_f64(config.record.max_file_s),
             queue: config.record.queue,
             chunk_bytes: 4 << 20,
+            file_mode: config.file_mode(),
         })?;
         (Some(r), Some(t), Some(path))
     } else {

@@ -97,6 +97,9 @@ pub fn run(args: TrainArgs) -> anyhow::Result<ExitCode> {
         }
     }
     experience.save_dir(&args.db)?;
+    for file in Experience::files(&args.db) {
+        config.apply_file_mode(&file)?;
+    }
     let (spark, flame) = (&experience.spark, &experience.flame);
     println!(
         "learned from {plans} solved plans: SPARK {} entries (+{}), FLAME {} entries (+{}); saved in {}",

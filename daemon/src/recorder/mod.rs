@@ -40,6 +40,8 @@ pub struct RecorderOptions {
     pub max_file_duration: Duration,
     /// Records the queue holds before dropping.
     pub queue: usize,
+    /// Mode of the session files.
+    pub file_mode: u32,
     /// Target uncompressed chunk size, bytes.
     pub chunk_bytes: u64,
 }
@@ -133,6 +135,11 @@ impl SessionWriter {
     fn open(path: &Path, options: &RecorderOptions) -> anyhow::Result<Self> {
         // Owner-only, as the databases: recordings hold the robot's surroundings.
         let file = ember_engine::experience::file::private_file(path)
+            .and_then(|f| {
+                use std::os::unix::fs::PermissionsExt;
+                f.set_permissions(std::fs::Permissions::from_mode(options.file_mode))?;
+                Ok(f)
+            })
             .map_err(|e| anyhow::anyhow!("cannot create {}: {e}", path.display()))?;
         let mut writer = mcap::WriteOptions::new()
             .compression(Some(mcap::Compression::Zstd))

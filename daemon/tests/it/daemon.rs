@@ -403,6 +403,43 @@ fn every_bad_input_gets_its_own_status_and_the_daemon_keeps_serving() {
     assert_eq!(status(header, &good), Status::Ok);
 }
 
+fn assert_modes<'a>(files: impl IntoIterator<Item = &'a PathBuf>, expected: u32) {
+    use std::os::unix::fs::PermissionsExt;
+    for f in files {
+        let mode = std::fs::metadata(f).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode, expected, "{}: {mode:o}", f.display());
+    }
+}
+
+#[test]
+fn the_configured_file_mode_applies_to_databases_and_recordings() {
+    let dir = std::env::temp_dir().join(format!("ember-mode-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let config = dir.join("emberd.toml");
+    std::fs::write(&config, "file_mode = \"0640\"\n").unwrap();
+    let mut d = Daemon::start_args(
+        "mode",
+        &["--no-monitor", "--config", config.to_str().unwrap()],
+    );
+    let client = d.client();
+    publish_table(&client);
+    wait_for(&client, "objects", |s| s.world_objects == 3);
+    let mut near = call(FREE_GOAL);
+    near.goals = vec![goal_near_can()];
+    assert_eq!(
+        client.plan(&near, Duration::from_secs(20)).unwrap().status,
+        Status::Ok
+    );
+    wait_for(&client, "learning", |s| {
+        s.spark_entries + s.flame_entries > 0
+    });
+    d.signal("-TERM");
+    assert!(d.child.wait().unwrap().success());
+    let files = ember_engine::experience::Experience::files(&d.db_dir);
+    assert_modes(files.iter().chain([&d.recording]), 0o640);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 #[test]
 fn sigterm_saves_the_database_and_sigkill_allows_an_immediate_restart() {
     let d = Daemon::start("life");
@@ -423,11 +460,7 @@ fn sigterm_saves_the_database_and_sigkill_allows_an_immediate_restart() {
     let files = ember_engine::experience::Experience::files(&db_dir);
     assert!(files.iter().all(|f| f.exists()), "{files:?}");
     // Databases and recordings are the owner's only.
-    use std::os::unix::fs::PermissionsExt;
-    for f in files.iter().chain([&d.recording]) {
-        let mode = std::fs::metadata(f).unwrap().permissions().mode() & 0o777;
-        assert_eq!(mode, 0o600, "{}", f.display());
-    }
+    assert_modes(files.iter().chain([&d.recording]), 0o600);
     std::mem::forget(d); // keep the database folder for the restart
 
     let d = Daemon::start_with(instance.clone(), db_dir.clone(), &["--no-monitor"]);
@@ -513,6 +546,9 @@ fn bad_config_key_is_named() {
         ("[record]\nqueue = 100000000000\n", "record.queue"),
         ("[monitor]\nstatus_hz = 1e9\n", "monitor.status_hz"),
         ("[limits]\npublishers = 0\n", "limits.publishers"),
+        ("[planner]\nworkers = 1000\n", "planner.workers"),
+        ("file_mode = \"0666\"\n", "file_mode"),
+        ("file_mode = \"rw-------\"\n", "file_mode"),
         (
             "[planner]\ndefault_time_limit_s = 60.0\n",
             "planner.default_time_limit_s",
