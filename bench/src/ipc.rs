@@ -7,8 +7,11 @@
 //!   version mismatch): their round trip is what the transport adds to an in-process call, and
 //!   is the reported overhead (p50/p99).
 //!
-//! Flags: `--clouds N` (default 100), `--plans N` (default 300). Ends with
-//! `RESULT ipc cloud_p50_us=<f> cloud_p99_us=<f> plan_overhead_p50_us=<f> plan_overhead_p99_us=<f>`.
+//! - first, measures the idle daemon's CPU use (a client connected, nothing sent).
+//!
+//! Flags: `--clouds N` (default 100), `--plans N` (default 300), `--idle-s S` (5),
+//! `--ingest-spin-us U` (the daemon's `ingest.spin_us`, 0). Ends with
+//! `RESULT ipc cloud_p50_us=<f> cloud_p99_us=<f> plan_overhead_p50_us=<f> plan_overhead_p99_us=<f> idle_cpu_pct=<f>`.
 
 use crate::daemon::DaemonProcess;
 use ember_engine::planning::{self, Goal, PlanRequest, PlannerParams, UniformSampler};
@@ -26,18 +29,49 @@ pub struct Args {
     /// Plan requests to time.
     #[arg(long, default_value_t = 300)]
     plans: usize,
+    /// Seconds the idle daemon's CPU use is measured over.
+    #[arg(long, default_value_t = 5)]
+    idle_s: u64,
+    /// The daemon's `ingest.spin_us`.
+    #[arg(long, default_value_t = 0)]
+    ingest_spin_us: u64,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let daemon = DaemonProcess::start(
-        "ipc",
-        "[experience]\nonline_learning = false\n",
-        &["--no-monitor"],
-    )?;
-    measure(&daemon.instance, &args, &daemon.dir.join("recordings"))
+    let config = format!(
+        "[experience]\nonline_learning = false\n[ingest]\nspin_us = {}\n",
+        args.ingest_spin_us
+    );
+    let daemon = DaemonProcess::start("ipc", &config, &["--no-monitor"])?;
+    // Idle: connected client, nothing sent, for a few seconds.
+    let idle_pct = {
+        let _client = Client::connect(&daemon.instance)?;
+        std::thread::sleep(Duration::from_secs(1));
+        let (c0, t0) = (daemon.cpu_seconds(), Instant::now());
+        std::thread::sleep(Duration::from_secs(args.idle_s));
+        match (c0, daemon.cpu_seconds()) {
+            (Some(a), Some(b)) => (b - a) / t0.elapsed().as_secs_f64() * 100.0,
+            _ => f64::NAN,
+        }
+    };
+    println!(
+        "idle daemon (a client connected, nothing sent, {} s): {idle_pct:.2}% of a core",
+        args.idle_s
+    );
+    measure(
+        &daemon.instance,
+        &args,
+        &daemon.dir.join("recordings"),
+        idle_pct,
+    )
 }
 
-fn measure(instance: &str, args: &Args, recordings: &std::path::Path) -> anyhow::Result<()> {
+fn measure(
+    instance: &str,
+    args: &Args,
+    recordings: &std::path::Path,
+    idle_pct: f64,
+) -> anyhow::Result<()> {
     let client = Client::connect(instance)?;
     let t = Duration::from_secs(10);
     // Clouds: a wall 1.5 m ahead, 640×480 points, one every 50 ms.
@@ -188,6 +222,6 @@ fn measure(instance: &str, args: &Args, recordings: &std::path::Path) -> anyhow:
     println!("cloud 640x480 ({:.1} MB), {} clouds: hand-off to receipt in the daemon p50 {cloud_p50:.1} us, p99 {cloud_p99:.1} us", n as f64 * 12.0 / 1e6, args.clouds);
     println!("plan, {} requests each: round trip p50 {rt50:.1} / p99 {rt99:.1} us, in-process p50 {lt50:.1} / p99 {lt99:.1} us", args.plans);
     println!("plan round trip of a request refused before planning (the transport's cost): p50 {o50:.1} us, p99 {o99:.1} us");
-    println!("RESULT ipc cloud_p50_us={cloud_p50:.1} cloud_p99_us={cloud_p99:.1} plan_overhead_p50_us={o50:.1} plan_overhead_p99_us={o99:.1}");
+    println!("RESULT ipc cloud_p50_us={cloud_p50:.1} cloud_p99_us={cloud_p99:.1} plan_overhead_p50_us={o50:.1} plan_overhead_p99_us={o99:.1} idle_cpu_pct={idle_pct:.2} ingest_spin_us={}", args.ingest_spin_us);
     Ok(())
 }

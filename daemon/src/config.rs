@@ -64,6 +64,15 @@ pub struct Config {
     pub record: RecordConfig,
     pub monitor: MonitorConfig,
     pub limits: LimitsConfig,
+    pub ingest: IngestConfig,
+}
+
+/// `[ingest]`: how the ingest thread waits for inputs.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IngestConfig {
+    /// Busy-look for the next input this long after each one, µs (0: sleep at once).
+    pub spin_us: u64,
 }
 
 /// `[limits]`: how many clients, publishers and subscribers the services admit.
@@ -261,6 +270,12 @@ impl Config {
 
     fn validate(&self) -> Result<(), String> {
         parse_file_mode(&self.file_mode)?;
+        if self.ingest.spin_us > 1_000_000 {
+            return Err(format!(
+                "key ingest.spin_us must be at most 1000000 (one second), got {}",
+                self.ingest.spin_us
+            ));
+        }
         let positive = |key: &str, v: f64| {
             if v.is_finite() && v > 0.0 {
                 Ok(())

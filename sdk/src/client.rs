@@ -1,6 +1,6 @@
 //! The client: what a robot stack links to talk to `emberd`.
 
-use crate::services::{self, Open};
+use crate::services::{self, Open, Wake};
 use crate::status::Status;
 use crate::wire::plan::MAX_PLAN_VALUES;
 use crate::wire::{
@@ -10,6 +10,7 @@ use crate::wire::{
 };
 use iceoryx2::pending_response::PendingResponse;
 use iceoryx2::port::client::Client as RrClient;
+use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::prelude::*;
 use std::cell::Cell;
@@ -127,6 +128,9 @@ pub struct Client {
     plan: RrClient<ipc::Service, [f64], PlanRequestHeader, [f64], PlanResponseHeader>,
     status: RrClient<ipc::Service, u64, (), wire::StatusReply, ()>,
     cancel: RrClient<ipc::Service, CancelRequest, (), CancelReply, ()>,
+    /// Wake the daemon's ingest thread and service thread after publishing or sending.
+    wake_inputs: Notifier<ipc::Service>,
+    wake_requests: Notifier<ipc::Service>,
     /// The last message number per input kind (cloud, object, joints).
     seq: [Cell<u64>; 3],
     /// The last request id handed out.
@@ -262,6 +266,14 @@ impl Client {
             .client_builder()
             .create()
             .map_err(|e| attach_error(e, "cancel", "clients", max))?;
+        let notifier = |which| {
+            let wake = services::wake(&node, instance, which, Open::Attach).map_err(no_daemon)?;
+            let max = wake.static_config().max_notifiers();
+            wake.notifier_builder()
+                .create()
+                .map_err(|e| attach_error(e, "wake", "clients", max))
+        };
+        let (wake_inputs, wake_requests) = (notifier(Wake::Inputs)?, notifier(Wake::Requests)?);
         let base = request_id_base(&node as *const _ as usize);
         Ok(Client {
             node,
@@ -272,6 +284,8 @@ impl Client {
             plan,
             status,
             cancel,
+            wake_inputs,
+            wake_requests,
             seq: Default::default(),
             last_request_id: Cell::new(base),
         })
@@ -280,6 +294,16 @@ impl Client {
     /// The instance connected to.
     pub fn instance(&self) -> &str {
         &self.instance
+    }
+
+    /// Wakes the daemon thread that serves what was just sent. Best effort: the daemon also
+    /// looks on its own every 10 ms.
+    fn wake(&self, which: Wake) {
+        let notifier = match which {
+            Wake::Inputs => &self.wake_inputs,
+            Wake::Requests => &self.wake_requests,
+        };
+        let _ = notifier.notify();
     }
 
     /// The next message number of input kind `kind` (0 cloud, 1 object, 2 joints).
@@ -316,6 +340,7 @@ impl Client {
             seq: self.next_seq(0),
         };
         sample.send().map_err(transport)?;
+        self.wake(Wake::Inputs);
         Ok(())
     }
 
@@ -337,12 +362,14 @@ impl Client {
             seq: self.next_seq(1),
         };
         self.objects.send_copy(update).map_err(transport)?;
+        self.wake(Wake::Inputs);
         Ok(())
     }
 
     /// Publishes a raw object update (for tools and tests that send exactly what they choose).
     pub fn publish_object_raw(&self, update: ObjectUpdate) -> Result<(), ClientError> {
         self.objects.send_copy(update).map_err(transport)?;
+        self.wake(Wake::Inputs);
         Ok(())
     }
 
@@ -363,6 +390,7 @@ impl Client {
         };
         js.positions[..positions.len()].copy_from_slice(positions);
         self.joints.send_copy(js).map_err(transport)?;
+        self.wake(Wake::Inputs);
         Ok(())
     }
 
@@ -437,6 +465,7 @@ impl Client {
                 request_id,
             })
             .map_err(transport)?;
+        self.wake(Wake::Requests);
         let deadline = Instant::now() + timeout;
         loop {
             if let Some(r) = pending.receive().map_err(transport)? {
@@ -461,6 +490,7 @@ impl Client {
     /// The daemon's counters and latencies.
     pub fn status(&self, timeout: Duration) -> Result<wire::StatusReply, ClientError> {
         let pending = self.status.send_copy(0).map_err(transport)?;
+        self.wake(Wake::Requests);
         let deadline = Instant::now() + timeout;
         loop {
             if let Some(r) = pending.receive().map_err(transport)? {
@@ -504,6 +534,7 @@ impl Client {
         *request.user_header_mut() = header;
         let request = request.write_from_slice(values);
         let pending = request.send().map_err(transport)?;
+        self.wake(Wake::Requests);
         Ok(PendingPlan { pending, header })
     }
 }

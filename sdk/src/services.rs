@@ -182,3 +182,43 @@ pub fn cancel(
         .request_response::<CancelRequest, CancelReply>();
     open_req_res!(b, open, "cancel")
 }
+
+/// The daemon threads a notification wakes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Wake {
+    /// Ingest: a cloud, object update or joint state was published
+    /// (`ember/<instance>/inputs_ready`).
+    Inputs,
+    /// The service thread: a plan, status or cancel request was sent
+    /// (`ember/<instance>/requests_ready`).
+    Requests,
+}
+
+/// The event service type.
+pub type WakeService = iceoryx2::service::port_factory::event::PortFactory<ipc::Service>;
+
+/// Opens (or creates) one of the event services that wake the daemon instead of polling:
+/// clients notify after they publish or send (a client that does not is still served, within
+/// the daemon's fallback wait of 10 ms).
+pub fn wake(
+    node: &Node<ipc::Service>,
+    instance: &str,
+    which: Wake,
+    open: Open,
+) -> Result<WakeService, String> {
+    let kind = match which {
+        Wake::Inputs => "inputs_ready",
+        Wake::Requests => "requests_ready",
+    };
+    let name = ServiceName::new(&service(instance, kind)).map_err(|e| format!("{e:?}"))?;
+    let b = node.service_builder(&name).event();
+    match open {
+        // Every client is one notifier of each; the daemon's planning workers notify too.
+        Open::Serve(l) => b
+            .max_notifiers(l.clients.max(l.publishers) + 64)
+            .max_listeners(2)
+            .open_or_create()
+            .map_err(|e| format!("{kind} service: {e:?}")),
+        Open::Attach => b.open().map_err(|e| format!("{kind} service: {e:?}")),
+    }
+}

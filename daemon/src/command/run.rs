@@ -12,10 +12,11 @@ use crate::service::ingest::Ingest;
 use crate::service::plan::workers::work;
 use crate::service::plan::{Job, PlanContext, PlanPort, Reply};
 use crate::service::status::StatusPort;
-use crate::service::{SnapshotCell, Stats};
+use crate::service::{SnapshotCell, Stats, IDLE_WAIT};
 use crate::world::World;
 use ember_engine::experience::{Database, Experience, ExperienceParams};
 use ember_sdk::launch::Ready;
+use ember_sdk::services::{self, Open, Wake};
 use iceoryx2::prelude::*;
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -99,6 +100,12 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     let mut plans = PlanPort::open(&node, &config.instance, limits, robot.dof())?;
     let status = StatusPort::open(&node, &config.instance, limits)?;
     let cancel = CancelPort::open(&node, &config.instance, limits)?;
+    // Clients (and the planning workers) notify this after sending: the loop below sleeps on it.
+    let wake = services::wake(&node, &config.instance, Wake::Requests, Open::Serve(limits))
+        .map_err(anyhow::Error::msg)?
+        .listener_builder()
+        .create()
+        .map_err(|e| anyhow::anyhow!("requests wake-up listener: {e:?}"))?;
 
     let (experience, set_aside) = Experience::load_dir(
         &config.experience.db_dir,
@@ -205,21 +212,16 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
                 .spawn_scoped(scope, move || work(cx, experience, job_rx, reply_tx))?;
         }
         drop(reply_tx);
-        // Poll without sleeping for a while after each request (a client streaming requests
-        // gets them picked up within microseconds), then sleep in short waits; a reply wakes
-        // the wait at once.
+        // Poll without sleeping for a while after each plan request (a client streaming
+        // requests gets them picked up within microseconds), then sleep until a client or a
+        // worker notifies (or the idle wait ends: clients that do not notify, the stop flag).
         let mut last_request = Instant::now() - Duration::from_secs(1);
         while !terminate.load(Ordering::Relaxed) {
-            let busy = last_request.elapsed() < Duration::from_millis(20);
-            let reply = match busy {
-                true => {
-                    std::thread::yield_now();
-                    reply_rx.try_recv().ok()
-                }
-                false => reply_rx.recv_timeout(Duration::from_micros(50)).ok(),
-            };
-            if let Some(r) = reply {
-                plans.reply(r);
+            if last_request.elapsed() < Duration::from_millis(20) {
+                std::thread::yield_now();
+                let _ = wake.try_wait(|_| {});
+            } else {
+                let _ = wake.timed_wait(|_| {}, IDLE_WAIT);
             }
             while let Ok(r) = reply_rx.try_recv() {
                 plans.reply(r);

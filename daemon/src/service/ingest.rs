@@ -5,7 +5,7 @@
 use super::cloud::CloudPort;
 use super::joints::JointsPort;
 use super::objects::{ObjectInput, ObjectsPort};
-use super::{Rejection, SnapshotCell, Stats};
+use super::{Rejection, SnapshotCell, Stats, IDLE_WAIT};
 use crate::config::Config;
 use crate::recorder::Recorder;
 use crate::world::World;
@@ -13,11 +13,11 @@ use ember_engine::robot::Robot;
 use ember_sdk::client::now_ns;
 use ember_sdk::monitor::InputsDoc;
 use ember_sdk::recording::Event;
+use ember_sdk::services::{self, Open, Wake};
 use ember_sdk::wire;
 use iceoryx2::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
-use std::time::Duration;
 use tracing::warn;
 
 /// What the ingest thread works with.
@@ -48,10 +48,17 @@ impl Ingest {
         let clouds = CloudPort::open(&node, instance, limits)?;
         let objects = ObjectsPort::open(&node, instance, limits)?;
         let joints = JointsPort::open(&node, instance, limits)?;
+        let wake = services::wake(&node, instance, Wake::Inputs, Open::Serve(limits))
+            .map_err(anyhow::Error::msg)?
+            .listener_builder()
+            .create()
+            .map_err(|e| anyhow::anyhow!("inputs wake-up listener: {e:?}"))?;
         let mut world = World::new(&self.config);
         let max_extent = self.config.map.max_object_extent();
         let max_objects = self.config.limits.objects;
         let (mut cloud_gaps, mut object_gaps, mut joint_gaps) = Default::default();
+        let spin = std::time::Duration::from_micros(self.config.ingest.spin_us);
+        let mut last_input = std::time::Instant::now() - spin;
         let _ = ready.send(());
         while !self.stop.load(Ordering::Relaxed) {
             let mut changed = false;
@@ -145,6 +152,7 @@ impl Ingest {
                 None => {}
             }
             if changed {
+                last_input = std::time::Instant::now();
                 let snap = world.snapshot();
                 {
                     let mut st = self.stats.inner.lock().expect("stats lock");
@@ -155,8 +163,14 @@ impl Ingest {
                     st.world.spark_pairs = snap.pairs.len() as u64;
                 }
                 *self.snapshot.lock().expect("snapshot lock") = Arc::new(snap);
-            } else if node.wait(Duration::from_micros(50)).is_err() {
-                break;
+            } else if last_input.elapsed() < spin {
+                // A stream is flowing: look again at once (see `ingest.spin_us`).
+                let _ = wake.try_wait(|_| {});
+                std::thread::yield_now();
+            } else if wake.timed_wait(|_| {}, IDLE_WAIT).is_err() {
+                // Nothing was waiting: this slept until a client said it sent something (or
+                // the idle wait ended); should the wake-up service fail, sleep anyway.
+                std::thread::sleep(IDLE_WAIT);
             }
         }
         Ok(())

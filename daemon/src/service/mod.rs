@@ -27,6 +27,10 @@ use ember_sdk::monitor::{DatabaseDoc, InputsDoc, MapDoc, PlansDoc, WorldDoc};
 use ember_sdk::wire::PlanResponseHeader;
 use std::sync::{Arc, Mutex};
 
+/// How long a daemon thread sleeps waiting for a client's wake-up before looking at its ports
+/// on its own (clients that do not notify are served within this).
+pub const IDLE_WAIT: std::time::Duration = std::time::Duration::from_millis(10);
+
 /// Shared handle to the latest world snapshot (written by ingest, read by planning).
 pub type SnapshotCell = Arc<Mutex<Arc<Snapshot>>>;
 

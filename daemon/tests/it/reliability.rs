@@ -357,3 +357,34 @@ fn recording_pauses_on_a_full_disk_and_resumes_when_room_returns() {
     eprintln!("clouds per file: {clouds:?}");
     assert!(clouds[0] > 0 && *clouds.last().unwrap() >= 3, "{clouds:?}");
 }
+
+#[test]
+fn a_client_that_never_notifies_is_still_served() {
+    // A foreign client publishing straight to the service, without the wake-up the SDK sends:
+    // the sleeping ingest thread finds its update within its idle wait.
+    use iceoryx2::prelude::*;
+    let d = Daemon::start("silent");
+    let watcher = d.client();
+    let node = NodeBuilder::new()
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<ipc::Service>()
+        .unwrap();
+    let publisher =
+        ember_sdk::services::objects(&node, &d.instance, ember_sdk::services::Open::Attach)
+            .unwrap()
+            .publisher_builder()
+            .create()
+            .unwrap();
+    let update = ember_sdk::wire::ObjectUpdate {
+        version: ember_sdk::wire::PROTOCOL_VERSION,
+        shape: ShapeKind::Sphere as u32,
+        id: ember_sdk::wire::name("quiet"),
+        dims: [0.05, 0.0, 0.0],
+        pose: [1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+        ..Default::default()
+    };
+    publisher.send_copy(update).unwrap();
+    wait_for(&watcher, "the silent client's object", |s| {
+        s.world_objects == 1
+    });
+}

@@ -7,7 +7,10 @@ use crate::monitor::docs::plan_summary;
 use ember_engine::experience::Experience;
 use ember_sdk::client::now_ns;
 use ember_sdk::recording::{self, Event};
+use ember_sdk::services::{self, Open, Wake};
 use ember_sdk::Status;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::prelude::*;
 use std::panic::AssertUnwindSafe;
 use std::sync::mpsc::{Receiver, Sender};
 use std::sync::{Mutex, RwLock};
@@ -24,6 +27,7 @@ pub fn work(
     jobs: &Mutex<Receiver<Job>>,
     replies: Sender<Reply>,
 ) {
+    let waker = Waker::open(&cx.config.instance);
     loop {
         let job = match jobs.lock().expect("job queue lock").recv() {
             Ok(job) => job,
@@ -66,10 +70,19 @@ pub fn work(
             header: a.header,
             payload: a.payload(),
         };
+        // A request that arrives after this reply must plan with what it teaches (as when one
+        // thread answered and learned in turn; a replayed session depends on it): the
+        // databases are locked before the reply goes, so its retrieval waits for the lesson.
+        let learning = lesson.map(|l| (l, experience.write().expect("experience lock")));
         if replies.send(reply).is_err() {
             return;
         }
-        // The reply is out: recording, monitoring and learning never delay an answer.
+        waker.wake();
+        // The reply is out: learning, recording and monitoring never delay an answer.
+        if let Some((lesson, mut experience)) = learning {
+            lesson.learn(cx.robot, &a.path, &mut experience);
+            cx.stats.learned(&experience);
+        }
         if let Some(r) = cx.recorder {
             let _in_order = RECORDING_ORDER.lock().expect("recording order lock");
             let request = recording::PlanRequest::new(job.recv_ns, h, values);
@@ -81,10 +94,36 @@ pub fn work(
         if let Some(m) = cx.monitor {
             m.plan(plan_summary(&cx.config.instance, seq, job.recv_ns, h, &a));
         }
-        if let Some(lesson) = lesson {
-            let mut experience = experience.write().expect("experience lock");
-            lesson.learn(cx.robot, &a.path, &mut experience);
-            cx.stats.learned(&experience);
+    }
+}
+
+/// Wakes the service thread when a reply is ready (it sleeps on the requests wake-up service;
+/// without one it finds the reply within its idle wait).
+struct Waker(Option<(Node<ipc::Service>, Notifier<ipc::Service>)>);
+
+impl Waker {
+    fn open(instance: &str) -> Waker {
+        let opened = (|| {
+            let node = NodeBuilder::new()
+                .signal_handling_mode(SignalHandlingMode::Disabled)
+                .create::<ipc::Service>()
+                .ok()?;
+            let notifier = services::wake(&node, instance, Wake::Requests, Open::Attach)
+                .ok()?
+                .notifier_builder()
+                .create()
+                .ok()?;
+            Some((node, notifier))
+        })();
+        if opened.is_none() {
+            warn!("a planning worker cannot wake the service thread: replies wait up to its idle wait");
+        }
+        Waker(opened)
+    }
+
+    fn wake(&self) {
+        if let Some((_, n)) = &self.0 {
+            let _ = n.notify();
         }
     }
 }
