@@ -240,6 +240,10 @@ pub struct MonitorArgs {
     /// Discover daemons by multicast scouting on the network.
     #[arg(long)]
     pub scout: bool,
+    /// A Zenoh JSON5 config file used as the base, e.g. with the user and password to
+    /// authenticate with (`transport.auth.usrpwd`).
+    #[arg(long)]
+    pub zenoh_config: Option<PathBuf>,
 }
 
 #[derive(Debug, Args)]

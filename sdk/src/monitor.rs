@@ -64,6 +64,10 @@ pub struct StatusDoc {
     pub recording: RecordingDoc,
     /// Monitoring messages dropped because the publisher fell behind.
     pub monitor_dropped: u64,
+    /// How the daemon's Zenoh session admits peers: `usrpwd` (only those with a user and
+    /// password in its dictionary: what a watcher reads through it came from authenticated
+    /// sessions) or `none` (empty in documents of older daemons).
+    pub monitor_auth: String,
 }
 
 impl From<&StatusDoc> for crate::wire::StatusReply {

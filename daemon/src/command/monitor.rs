@@ -27,7 +27,7 @@ pub fn run(args: MonitorArgs) -> anyhow::Result<ExitCode> {
         listen: &[],
         connect: &args.connect,
         multicast_scouting: args.scout,
-        base: None,
+        base: args.zenoh_config.as_deref(),
     })?;
     if args.once {
         once(&session, &args)
@@ -148,6 +148,12 @@ fn live(session: &Session, args: &MonitorArgs) -> anyhow::Result<ExitCode> {
         })
         .wait()
         .map_err(z)?;
+    // Whether this watcher authenticates; each instance says whether it admits only peers that
+    // do (the `auth` column): what reaches us through such an instance came from them.
+    let who = match session::Authentication::of(args.zenoh_config.as_deref())?.user {
+        Some(u) => format!("authenticated as '{u}'"),
+        None => "unauthenticated".to_string(),
+    };
     let mut watched: BTreeMap<String, Watched> = BTreeMap::new();
     let mut next_draw = Instant::now();
     loop {
@@ -165,7 +171,7 @@ fn live(session: &Session, args: &MonitorArgs) -> anyhow::Result<ExitCode> {
             }
             Ok(Event::Alive(i, alive)) => watched.entry(i).or_default().alive = alive,
             Err(RecvTimeoutError::Timeout) => {
-                draw(&watched, &args.connect);
+                draw(&watched, &args.connect, &who);
                 next_draw = Instant::now() + Duration::from_secs(1);
             }
             Err(RecvTimeoutError::Disconnected) => return Ok(ExitCode::SUCCESS),
@@ -173,17 +179,18 @@ fn live(session: &Session, args: &MonitorArgs) -> anyhow::Result<ExitCode> {
     }
 }
 
-fn draw(watched: &BTreeMap<String, Watched>, connect: &[String]) {
+fn draw(watched: &BTreeMap<String, Watched>, connect: &[String], who: &str) {
     let mut out = String::from("\x1b[2J\x1b[H");
     out += &format!(
-        "ember monitor: {} instance(s) via {}   (Ctrl-C to quit)\n\n",
+        "ember monitor: {} instance(s) via {}, {who}   (Ctrl-C to quit)\n\n",
         watched.len(),
         connect.join(",")
     );
     out += &format!(
-        "{:<14} {:<6} {:>8} {:>8} {:>8} {:>9} {:>11} {:>9} {:>15} {:>10} {:>8}\n",
+        "{:<14} {:<6} {:<6} {:>8} {:>8} {:>8} {:>9} {:>11} {:>9} {:>15} {:>10} {:>8}\n",
         "instance",
         "state",
+        "auth",
         "uptime",
         "cloud/s",
         "objects",
@@ -199,9 +206,13 @@ fn draw(watched: &BTreeMap<String, Watched>, connect: &[String]) {
         match &w.status {
             Some(s) => {
                 out += &format!(
-                    "{:<14} {:<6} {:>7.0}s {:>8.1} {:>8} {:>9.1} {:>11} {:>9} {:>15} {:>10} {:>8}\n",
+                    "{:<14} {:<6} {:<6} {:>7.0}s {:>8.1} {:>8} {:>9.1} {:>11} {:>9} {:>15} {:>10} {:>8}\n",
                     name,
                     state,
+                    match s.monitor_auth.as_str() {
+                        "" => "?",
+                        a => a,
+                    },
                     s.uptime_s,
                     s.inputs.cloud_hz,
                     s.world.objects,

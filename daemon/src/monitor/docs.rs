@@ -30,6 +30,8 @@ pub struct Sources {
     pub resolution: f64,
     /// Summaries dropped because the publisher fell behind.
     pub dropped: AtomicU64,
+    /// How the monitor's Zenoh session admits peers (`usrpwd` or `none`).
+    pub monitor_auth: &'static str,
     rates: Mutex<Rates>,
 }
 
@@ -65,6 +67,15 @@ impl Sources {
             },
             resolution: config.map.resolution,
             dropped: AtomicU64::new(0),
+            monitor_auth: match config.monitor.enabled {
+                true => super::session::Authentication::of(
+                    (!config.monitor.zenoh_config.as_os_str().is_empty())
+                        .then_some(config.monitor.zenoh_config.as_path()),
+                )
+                .map(|a| a.required())
+                .unwrap_or("none"),
+                false => "none",
+            },
             rates: Mutex::new(Rates::default()),
         }
     }
@@ -150,6 +161,7 @@ impl Sources {
                 None => RecordingDoc::default(),
             },
             monitor_dropped: self.dropped.load(Ordering::Relaxed),
+            monitor_auth: self.monitor_auth.to_string(),
         }
     }
 

@@ -50,3 +50,39 @@ pub fn open(o: &SessionOptions) -> anyhow::Result<Session> {
         )
     })
 }
+
+/// How a session authenticates, as its Zenoh config file (`base`) sets it.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Authentication {
+    /// It admits only peers whose user and password are in its dictionary file.
+    pub requires_usrpwd: bool,
+    /// The user it authenticates as.
+    pub user: Option<String>,
+}
+
+impl Authentication {
+    /// What the config file at `base` (none: Zenoh's defaults) sets.
+    pub fn of(base: Option<&Path>) -> anyhow::Result<Authentication> {
+        let Some(p) = base else {
+            return Ok(Authentication::default());
+        };
+        let config = Config::from_file(p)
+            .map_err(|e| anyhow::anyhow!("zenoh config {}: {e}", p.display()))?;
+        let value = |key: &str| -> Option<String> {
+            let v = config.get_json(key).ok()?;
+            serde_json::from_str::<Option<String>>(&v).ok().flatten()
+        };
+        Ok(Authentication {
+            requires_usrpwd: value("transport/auth/usrpwd/dictionary_file").is_some(),
+            user: value("transport/auth/usrpwd/user"),
+        })
+    }
+
+    /// `usrpwd` when peers must authenticate, else `none`.
+    pub fn required(&self) -> &'static str {
+        match self.requires_usrpwd {
+            true => "usrpwd",
+            false => "none",
+        }
+    }
+}

@@ -249,6 +249,7 @@ fn a_second_daemon_on_a_taken_port_joins_the_first_and_both_are_seen() {
         String::from_utf8_lossy(&out.stderr)
     );
     let docs: Vec<StatusDoc> = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(docs.iter().all(|s| s.monitor_auth == "none"), "open sessions say so");
     for d in [&a, &b] {
         assert!(
             docs.iter().any(|s| s.instance == d.instance),
@@ -257,4 +258,76 @@ fn a_second_daemon_on_a_taken_port_joins_the_first_and_both_are_seen() {
             docs.iter().map(|s| &s.instance).collect::<Vec<_>>()
         );
     }
+}
+
+#[test]
+fn monitoring_can_require_authentication() {
+    // The daemon's Zenoh session admits only peers with a user and password from its
+    // dictionary: a watcher with them reads its status (marked `usrpwd`); one without, or with
+    // a wrong password, reads nothing, and so cannot have published anything either.
+    let dir = std::env::temp_dir().join(format!("ember-zauth-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let dictionary = dir.join("credentials.txt");
+    std::fs::write(&dictionary, "ember:s3cret\nwatcher:w4tch\n").unwrap();
+    let zenoh = |user: &str, password: &str, dictionary: Option<&std::path::Path>| {
+        let path = dir.join(format!("{user}-{password}.json5"));
+        let dict = dictionary.map_or(String::new(), |d| {
+            format!(", dictionary_file: \"{}\"", d.display())
+        });
+        std::fs::write(
+            &path,
+            format!(
+                "{{ transport: {{ auth: {{ usrpwd: {{ user: \"{user}\", password: \"{password}\"{dict} }} }} }} }}"
+            ),
+        )
+        .unwrap();
+        path
+    };
+    let daemon_zenoh = zenoh("ember", "s3cret", Some(&dictionary));
+    let config = dir.join("emberd.toml");
+    std::fs::write(
+        &config,
+        format!("[monitor]\nzenoh_config = \"{}\"\n", daemon_zenoh.display()),
+    )
+    .unwrap();
+    let endpoint = free_endpoint();
+    let d = Daemon::start_args(
+        "zenoh-auth",
+        &[
+            "--monitor-listen",
+            &endpoint,
+            "--config",
+            config.to_str().unwrap(),
+        ],
+    );
+    let watch = |zenoh_config: Option<&std::path::Path>| {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_ember"));
+        c.args(["monitor", "--once", "--json", "--timeout", "3"])
+            .args(["--connect", &endpoint, "--instance", &d.instance]);
+        if let Some(z) = zenoh_config {
+            c.arg("--zenoh-config").arg(z);
+        }
+        c.output().unwrap()
+    };
+    let out = watch(Some(&zenoh("watcher", "w4tch", None)));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let docs: Vec<StatusDoc> = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(docs.len(), 1);
+    assert_eq!(docs[0].monitor_auth, "usrpwd");
+    assert_eq!(
+        watch(None).status.code(),
+        Some(1),
+        "no credentials: nothing read"
+    );
+    let wrong = zenoh("watcher", "guess", None);
+    assert_eq!(
+        watch(Some(&wrong)).status.code(),
+        Some(1),
+        "a wrong password: nothing read"
+    );
+    std::fs::remove_dir_all(&dir).ok();
 }
