@@ -50,12 +50,29 @@ fn get(session: &Session, key: &str) -> Vec<u8> {
     reply.result().unwrap().payload().to_bytes().to_vec()
 }
 
-fn monitor_once(endpoint: &str, instance: &str) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_ember"))
-        .args(["monitor", "--once", "--json", "--timeout", "3"])
-        .args(["--connect", endpoint, "--instance", instance])
-        .output()
-        .unwrap()
+/// `ember monitor --once --json` of `instance` through `endpoint` (with a Zenoh config file).
+fn monitor_once(
+    endpoint: &str,
+    instance: &str,
+    zenoh_config: Option<&std::path::Path>,
+) -> std::process::Output {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_ember"));
+    c.args(["monitor", "--once", "--json", "--timeout", "3"])
+        .args(["--connect", endpoint, "--instance", instance]);
+    if let Some(z) = zenoh_config {
+        c.arg("--zenoh-config").arg(z);
+    }
+    c.output().unwrap()
+}
+
+/// The statuses `ember monitor --once --json` printed (it must have succeeded).
+fn statuses(out: &std::process::Output) -> Vec<StatusDoc> {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
 }
 
 #[test]
@@ -176,13 +193,7 @@ fn a_watcher_sees_status_plans_objects_map_and_liveliness() {
     assert!(db["online_learning"].as_bool().unwrap());
 
     // `ember monitor --once --json` in another process finds the same instance.
-    let out = monitor_once(&endpoint, &d.instance);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let docs: Vec<StatusDoc> = serde_json::from_slice(&out.stdout).unwrap();
+    let docs = statuses(&monitor_once(&endpoint, &d.instance, None));
     assert_eq!(docs.len(), 1);
     // The no-return points were dropped and counted; the rest of the cloud was used.
     assert_eq!(docs[0].inputs.invalid_points, 100);
@@ -194,7 +205,7 @@ fn a_watcher_sees_status_plans_objects_map_and_liveliness() {
     // A clean stop withdraws the token; afterwards nobody answers and the monitor says so.
     d.signal("-TERM");
     next(&alive_rx, "the token's withdrawal", |up| !*up);
-    let out = monitor_once(&endpoint, &d.instance);
+    let out = monitor_once(&endpoint, &d.instance, None);
     assert_eq!(out.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&out.stderr).contains("no Ember instance answered"));
 }
@@ -225,7 +236,7 @@ fn a_killed_daemon_disappears_for_watchers() {
 #[test]
 fn a_daemon_with_monitoring_off_answers_no_watcher() {
     let d = Daemon::start("zenoh-off");
-    let out = monitor_once(&free_endpoint(), &d.instance);
+    let out = monitor_once(&free_endpoint(), &d.instance, None);
     assert_eq!(
         out.status.code(),
         Some(1),
@@ -249,7 +260,10 @@ fn a_second_daemon_on_a_taken_port_joins_the_first_and_both_are_seen() {
         String::from_utf8_lossy(&out.stderr)
     );
     let docs: Vec<StatusDoc> = serde_json::from_slice(&out.stdout).unwrap();
-    assert!(docs.iter().all(|s| s.monitor_auth == "none"), "open sessions say so");
+    assert!(
+        docs.iter().all(|s| s.monitor_auth == "none"),
+        "open sessions say so"
+    );
     for d in [&a, &b] {
         assert!(
             docs.iter().any(|s| s.instance == d.instance),
@@ -300,22 +314,8 @@ fn monitoring_can_require_authentication() {
             config.to_str().unwrap(),
         ],
     );
-    let watch = |zenoh_config: Option<&std::path::Path>| {
-        let mut c = Command::new(env!("CARGO_BIN_EXE_ember"));
-        c.args(["monitor", "--once", "--json", "--timeout", "3"])
-            .args(["--connect", &endpoint, "--instance", &d.instance]);
-        if let Some(z) = zenoh_config {
-            c.arg("--zenoh-config").arg(z);
-        }
-        c.output().unwrap()
-    };
-    let out = watch(Some(&zenoh("watcher", "w4tch", None)));
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let docs: Vec<StatusDoc> = serde_json::from_slice(&out.stdout).unwrap();
+    let watch = |z: Option<&std::path::Path>| monitor_once(&endpoint, &d.instance, z);
+    let docs = statuses(&watch(Some(&zenoh("watcher", "w4tch", None))));
     assert_eq!(docs.len(), 1);
     assert_eq!(docs[0].monitor_auth, "usrpwd");
     assert_eq!(
