@@ -49,8 +49,11 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
     let started = Instant::now();
     let mut sent = 0u64;
     let (mut plans, mut reproduced, mut messages) = (0usize, 0usize, 0usize);
-    let mut last_reply: Option<(u64, Vec<f64>, u32)> = None;
-    let mut last_trajectory: Option<(u64, ember_sdk::wire::TrajectoryBlock)> = None;
+    // Replies by their request's receive stamp, until the recorded answer is reached: the
+    // recorded response may come after later requests (workers answer in any order).
+    let mut replies: std::collections::HashMap<u64, (Vec<f64>, u32)> = Default::default();
+    let mut trajectories: std::collections::HashMap<u64, ember_sdk::wire::TrajectoryBlock> =
+        Default::default();
     let (mut timed, mut timed_reproduced) = (0usize, 0usize);
     for file in &args.files {
         let session = Session::open(file)?;
@@ -92,13 +95,16 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
                     let header = r.request;
                     let timeout = Duration::from_secs_f64(r.request.time_limit_s.max(1.0) + 30.0);
                     let reply = client.plan_raw(header, &r.values, timeout)?;
-                    last_reply = Some((r.header.stamp.ns(), reply.path.concat(), reply.header.status));
-                    last_trajectory = reply.trajectory.map(|t| (r.header.stamp.ns(), t));
+                    let stamp = r.header.stamp.ns();
+                    replies.insert(stamp, (reply.path.concat(), reply.header.status));
+                    if let Some(t) = reply.trajectory {
+                        trajectories.insert(stamp, t);
+                    }
                     plans += 1;
                 }
                 Event::PlanResponse(recorded) => {
-                    if let Some((stamp, path, status)) = last_reply.take() {
-                        if stamp == recorded.header.stamp.ns() && status == recorded.status && path == recorded.path {
+                    if let Some((path, status)) = replies.remove(&recorded.header.stamp.ns()) {
+                        if status == recorded.status && path == recorded.path {
                             reproduced += 1;
                         } else if args.check {
                             eprintln!("plan {plans}: reply differs from the recording (status {status} vs {})", recorded.status);
@@ -107,8 +113,8 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
                 }
                 Event::PlanTrajectory(recorded) => {
                     timed += 1;
-                    match last_trajectory.take() {
-                        Some((stamp, t)) if stamp == recorded.header.stamp.ns() && recorded.matches(&t) => {
+                    match trajectories.remove(&recorded.header.stamp.ns()) {
+                        Some(t) if recorded.matches(&t) => {
                             timed_reproduced += 1;
                         }
                         _ if args.check => eprintln!("plan {plans}: trajectory differs from the recording"),

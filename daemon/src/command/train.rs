@@ -36,6 +36,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<ExitCode> {
         );
         bar.set_message(file.display().to_string());
         let mut world = World::new(&config);
+        let mut requests = std::collections::HashMap::new();
         let read = session.for_each(
             args.allow_truncated,
             &topics,
@@ -67,12 +68,18 @@ pub fn run(args: TrainArgs) -> anyhow::Result<ExitCode> {
                             world.insert_cloud(&robot, &points, &sensor);
                         }
                     }
+                    // The world a plan was planned in is the one at its request (inputs may be
+                    // recorded between a request and its response).
+                    Event::PlanRequest(r) => {
+                        requests.insert(r.header.stamp.ns(), world.snapshot());
+                    }
                     Event::PlanResponse(r) => {
                         let dof = r.dof as usize;
+                        let at_request = requests.remove(&r.header.stamp.ns());
                         if r.status == 0 && dof == robot.dof() && !r.path.is_empty() {
                             let path: Vec<Vec<f64>> =
                                 r.path.chunks_exact(dof).map(<[f64]>::to_vec).collect();
-                            let snap = world.snapshot();
+                            let snap = at_request.unwrap_or_else(|| world.snapshot());
                             experience.learn(
                                 &robot,
                                 &snap.scene,
@@ -83,7 +90,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<ExitCode> {
                             plans += 1;
                         }
                     }
-                    Event::PlanRequest(_) | Event::PlanTrajectory(_) => {}
+                    Event::PlanTrajectory(_) => {}
                 }
                 Ok(())
             },

@@ -60,13 +60,15 @@ impl Ingest {
         let spin = std::time::Duration::from_micros(self.config.ingest.spin_us);
         let mut last_input = std::time::Instant::now() - spin;
         let _ = ready.send(());
+        // This round's inputs, recorded together with the snapshot they make (see below).
+        let mut batch: Vec<(u64, Event)> = Vec::new();
         while !self.stop.load(Ordering::Relaxed) {
             let mut changed = false;
             while let Some((dropped, input)) = joints.receive(&self.robot, &mut joint_gaps) {
                 self.dropped(dropped, |i| &mut i.dropped_joints);
                 match input {
                     Ok(js) => {
-                        self.record(
+                        batch.push((
                             now_ns(),
                             Event::Joints {
                                 stamp_ns: js.stamp_ns,
@@ -78,7 +80,7 @@ impl Ingest {
                                     .collect(),
                                 positions: js.positions.clone(),
                             },
-                        );
+                        ));
                         world.set_joints(js.positions);
                         self.stats
                             .inner
@@ -95,7 +97,7 @@ impl Ingest {
                 self.dropped(dropped, |i| &mut i.dropped_objects);
                 // Recorded as received, whether or not it applies.
                 if Rejection::check_version("object update", update.version).is_ok() {
-                    self.record(now_ns(), Event::Object(update));
+                    batch.push((now_ns(), Event::Object(update)));
                 }
                 let applied = match input {
                     Ok(ObjectInput::Upsert(o)) if world.would_exceed(&o.name, max_objects) => {
@@ -131,7 +133,7 @@ impl Ingest {
                     let h = *cloud.header();
                     let recv_ns = now_ns();
                     let report = world.insert_cloud(&self.robot, cloud.points(), &cloud.pose);
-                    self.record(
+                    batch.push((
                         recv_ns,
                         Event::Cloud {
                             frame_id: wire::name_str(&h.frame_id),
@@ -139,7 +141,7 @@ impl Ingest {
                             pose: h.sensor_pose,
                             points: cloud.points().to_vec(),
                         },
-                    );
+                    ));
                     let mut st = self.stats.inner.lock().expect("stats lock");
                     st.inputs.clouds += 1;
                     st.inputs.invalid_points += report.invalid as u64;
@@ -162,7 +164,17 @@ impl Ingest {
                     st.world.objects = snap.scene.objects.len() as u64;
                     st.world.spark_pairs = snap.pairs.len() as u64;
                 }
-                *self.snapshot.lock().expect("snapshot lock") = Arc::new(snap);
+                let snap = Arc::new(snap);
+                // The inputs are recorded under the snapshot lock, as a plan request is when it
+                // takes its snapshot: what precedes a request in the recording is exactly the
+                // world it was planned in (a replay rebuilds that world from the file).
+                let mut cell = self.snapshot.lock().expect("snapshot lock");
+                self.record_all(&mut batch);
+                *cell = snap;
+            } else if !batch.is_empty() {
+                // Inputs that changed nothing (refused ones): recorded as received.
+                let _cell = self.snapshot.lock().expect("snapshot lock");
+                self.record_all(&mut batch);
             } else if last_input.elapsed() < spin {
                 // A stream is flowing: look again at once (see `ingest.spin_us`).
                 let _ = wake.try_wait(|_| {});
@@ -190,10 +202,11 @@ impl Ingest {
         }
     }
 
-    /// Records `event`, received at `recv_ns`, when recording.
-    fn record(&self, recv_ns: u64, event: Event) {
-        if let Some(r) = &self.recorder {
-            r.record(recv_ns, event);
+    /// Records the events of `batch` (emptying it), when recording.
+    fn record_all(&self, batch: &mut Vec<(u64, Event)>) {
+        match &self.recorder {
+            Some(r) => batch.drain(..).for_each(|(t, e)| r.record(t, e)),
+            None => batch.clear(),
         }
     }
 }

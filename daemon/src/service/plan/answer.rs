@@ -89,15 +89,16 @@ impl Lesson {
 }
 
 /// Answers one request: the reply, and the lesson to learn after it is sent (when solved and
-/// learning is on for it).
+/// learning is on for it). `on_snapshot` runs while the world is held, as the request takes
+/// its snapshot (not for requests refused before).
 pub fn answer(
     config: &Config,
     robot: &Robot,
     snapshot: &SnapshotCell,
     experience: &RwLock<Experience>,
     cancel: &Cancel,
-    h: &PlanRequestHeader,
-    values: &[f64],
+    (h, values): (&PlanRequestHeader, &[f64]),
+    on_snapshot: &mut dyn FnMut(),
 ) -> (Answer, Option<Lesson>) {
     let t0 = Instant::now();
     // The databases are read only while retrieving: learning and saving wait for no plan.
@@ -107,7 +108,11 @@ pub fn answer(
         Err(why) => return (fail(why.status(), why.to_string()), None),
     };
     d.request.params.cancel = cancel.clone();
-    let snap = snapshot.lock().expect("snapshot lock").clone();
+    let snap = {
+        let cell = snapshot.lock().expect("snapshot lock");
+        on_snapshot();
+        cell.clone()
+    };
     let t_ret = Instant::now();
     let mut sampler = experience
         .sampler_for(d.method, snap.pairs.pairs(), &snap.octoboxes)

@@ -16,10 +16,6 @@ use std::sync::mpsc::{Receiver, Sender};
 use std::sync::{Mutex, RwLock};
 use tracing::{error, warn};
 
-/// Held while a plan's events are queued, so each request is followed by its own response in
-/// the recording (replay pairs them) although workers finish in any order.
-static RECORDING_ORDER: Mutex<()> = Mutex::new(());
-
 /// Runs one worker until the job queue closes.
 pub fn work(
     cx: &PlanContext,
@@ -34,6 +30,17 @@ pub fn work(
             Err(_) => return,
         };
         let (h, values) = (&job.header, &job.values[..]);
+        // The request is recorded as it takes its snapshot (inputs are recorded as they enter
+        // one): what precedes it in the recording is the world it was planned in. A request
+        // refused before is recorded with its answer.
+        let mut recorded = false;
+        let mut record_request = || {
+            if let Some(r) = cx.recorder {
+                let request = recording::PlanRequest::new(job.recv_ns, h, values);
+                r.record(job.recv_ns, Event::PlanRequest(request));
+            }
+            recorded = true;
+        };
         // A bug in planning answers this request `internal` and the worker serves on.
         let answered = std::panic::catch_unwind(AssertUnwindSafe(|| {
             answer(
@@ -42,8 +49,8 @@ pub fn work(
                 cx.snapshot,
                 experience,
                 &job.cancel,
-                h,
-                values,
+                (h, values),
+                &mut record_request,
             )
         }));
         let (mut a, lesson) = answered.unwrap_or_else(|panic| {
@@ -78,21 +85,22 @@ pub fn work(
             return;
         }
         waker.wake();
-        // The reply is out: learning, recording and monitoring never delay an answer.
-        if let Some((lesson, mut experience)) = learning {
-            lesson.learn(cx.robot, &a.path, &mut experience);
-            cx.stats.learned(&experience);
-        }
+        // The reply is out: recording, monitoring and learning never delay an answer.
         if let Some(r) = cx.recorder {
-            let _in_order = RECORDING_ORDER.lock().expect("recording order lock");
-            let request = recording::PlanRequest::new(job.recv_ns, h, values);
-            r.record(job.recv_ns, Event::PlanRequest(request));
+            if !recorded {
+                let request = recording::PlanRequest::new(job.recv_ns, h, values);
+                r.record(job.recv_ns, Event::PlanRequest(request));
+            }
             for event in answer_events(job.recv_ns, cx.robot, &a) {
                 r.record(now_ns(), event);
             }
         }
         if let Some(m) = cx.monitor {
             m.plan(plan_summary(&cx.config.instance, seq, job.recv_ns, h, &a));
+        }
+        if let Some((lesson, mut experience)) = learning {
+            lesson.learn(cx.robot, &a.path, &mut experience);
+            cx.stats.learned(&experience);
         }
     }
 }
