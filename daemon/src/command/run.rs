@@ -232,7 +232,9 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
             status.serve(&sources);
             cancel.serve(&stats.in_flight);
             if last_save.elapsed().as_secs_f64() >= config.experience.save_every_s {
-                let mut experience = experience.write().expect("experience lock");
+                let mut experience = experience
+                    .write()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner);
                 if experience.is_dirty() {
                     save(&config, &mut experience);
                 }
@@ -248,7 +250,9 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         }
         Ok(())
     })?;
-    let mut experience = experience.into_inner().expect("experience lock");
+    let mut experience = experience
+        .into_inner()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
     stop.store(true, Ordering::Relaxed);
     let _ = watcher.join();
     match ingest.join() {

@@ -102,7 +102,9 @@ pub fn answer(
 ) -> (Answer, Option<Lesson>) {
     let t0 = Instant::now();
     // The databases are read only while retrieving: learning and saving wait for no plan.
-    let experience = experience.read().expect("experience lock");
+    let experience = experience
+        .read()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
     let mut d = match decode(config, robot, experience.default_method(), h, values) {
         Ok(d) => d,
         Err(why) => return (fail(why.status(), why.to_string()), None),

@@ -13,7 +13,7 @@ use iceoryx2::port::notifier::Notifier;
 use iceoryx2::prelude::*;
 use std::panic::AssertUnwindSafe;
 use std::sync::mpsc::{Receiver, Sender};
-use std::sync::{Mutex, RwLock};
+use std::sync::{Mutex, PoisonError, RwLock};
 use tracing::{error, warn};
 
 /// Runs one worker until the job queue closes.
@@ -34,11 +34,8 @@ pub fn work(
         // one): what precedes it in the recording is the world it was planned in. A request
         // refused before is recorded with its answer.
         let mut recorded = false;
-        let mut record_request = || {
-            if let Some(r) = cx.recorder {
-                let request = recording::PlanRequest::new(job.recv_ns, h, values);
-                r.record(job.recv_ns, Event::PlanRequest(request));
-            }
+        let mut on_snapshot = || {
+            record_request(cx, &job);
             recorded = true;
         };
         // A bug in planning answers this request `internal` and the worker serves on.
@@ -50,7 +47,7 @@ pub fn work(
                 experience,
                 &job.cancel,
                 (h, values),
-                &mut record_request,
+                &mut on_snapshot,
             )
         }));
         let (mut a, lesson) = answered.unwrap_or_else(|panic| {
@@ -80,17 +77,22 @@ pub fn work(
         // A request that arrives after this reply must plan with what it teaches (as when one
         // thread answered and learned in turn; a replayed session depends on it): the
         // databases are locked before the reply goes, so its retrieval waits for the lesson.
-        let learning = lesson.map(|l| (l, experience.write().expect("experience lock")));
+        // (A panic elsewhere while it was held leaves the databases usable: never poisoned.)
+        let learning = lesson.map(|l| {
+            (
+                l,
+                experience.write().unwrap_or_else(PoisonError::into_inner),
+            )
+        });
         if replies.send(reply).is_err() {
             return;
         }
         waker.wake();
         // The reply is out: recording, monitoring and learning never delay an answer.
+        if !recorded {
+            record_request(cx, &job);
+        }
         if let Some(r) = cx.recorder {
-            if !recorded {
-                let request = recording::PlanRequest::new(job.recv_ns, h, values);
-                r.record(job.recv_ns, Event::PlanRequest(request));
-            }
             for event in answer_events(job.recv_ns, cx.robot, &a) {
                 r.record(now_ns(), event);
             }
@@ -99,9 +101,22 @@ pub fn work(
             m.plan(plan_summary(&cx.config.instance, seq, job.recv_ns, h, &a));
         }
         if let Some((lesson, mut experience)) = learning {
-            lesson.learn(cx.robot, &a.path, &mut experience);
+            let learned = std::panic::catch_unwind(AssertUnwindSafe(|| {
+                lesson.learn(cx.robot, &a.path, &mut experience)
+            }));
+            if learned.is_err() {
+                error!("learning from a plan failed on an internal error; the worker serves on");
+            }
             cx.stats.learned(&experience);
         }
+    }
+}
+
+/// Records `job`'s request as received, when recording.
+fn record_request(cx: &PlanContext, job: &Job) {
+    if let Some(r) = cx.recorder {
+        let request = recording::PlanRequest::new(job.recv_ns, &job.header, &job.values);
+        r.record(job.recv_ns, Event::PlanRequest(request));
     }
 }
 
