@@ -105,7 +105,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "ours with the previous snapshot held: {held_med:8.2} ms/frame median (a whole copy of this {}-block map: {copy_ms:.2} ms)",
         ours.block_count()
     );
-    let snapshot_keys = format!("snapshot_ms={held_med:.3} map_copy_ms={copy_ms:.3} blocks={}", ours.block_count());
+    let snapshot_keys = format!(
+        "snapshot_ms={held_med:.3} map_copy_ms={copy_ms:.3} blocks={}",
+        ours.block_count()
+    );
     if args.no_peer {
         println!(
             "RESULT map res={} ours_ms={ours_med:.3} octomap_ms=nan speedup=nan agreement=nan {snapshot_keys}",

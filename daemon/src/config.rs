@@ -257,6 +257,22 @@ impl Config {
         Ok(config)
     }
 
+    /// How the world model is kept: the map's settings, whether planning avoids it, the
+    /// self-filter's padding.
+    pub fn world_params(&self) -> ember_engine::world::model::WorldParams {
+        ember_engine::world::model::WorldParams {
+            map: ember_engine::world::map::MapParams {
+                resolution: self.map.resolution,
+                max_range: self.map.max_range,
+                bounds: Some((self.map.bounds_min, self.map.bounds_max)),
+                discretize: self.map.discretize,
+                ..Default::default()
+            },
+            use_map: self.planner.use_map,
+            self_filter_padding: self.map.self_filter_padding,
+        }
+    }
+
     /// The mode of the files emberd creates (databases, recordings): `file_mode`, validated.
     pub fn file_mode(&self) -> u32 {
         parse_file_mode(&self.file_mode).expect("validated on load")

@@ -6,7 +6,6 @@ mod config;
 mod monitor;
 mod recorder;
 mod service;
-mod world;
 
 use clap::Parser;
 

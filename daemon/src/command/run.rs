@@ -13,8 +13,8 @@ use crate::service::plan::workers::work;
 use crate::service::plan::{Job, PlanContext, PlanPort, Reply};
 use crate::service::status::StatusPort;
 use crate::service::{SnapshotCell, Stats, IDLE_WAIT};
-use crate::world::World;
 use ember_engine::experience::{Database, Experience, ExperienceParams};
+use ember_engine::world::model::World;
 use ember_sdk::launch::Ready;
 use ember_sdk::services::{self, Open, Wake};
 use iceoryx2::prelude::*;
@@ -115,7 +115,9 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     for s in set_aside {
         error!("{s}");
     }
-    let snapshot: SnapshotCell = Arc::new(Mutex::new(Arc::new(World::new(&config).snapshot())));
+    let snapshot: SnapshotCell = Arc::new(Mutex::new(Arc::new(
+        World::new(&config.world_params()).snapshot(),
+    )));
     let stats = Arc::new(Stats::default());
     stats.learned(&experience);
     let stop = Arc::new(AtomicBool::new(false));

@@ -6,9 +6,9 @@
 use crate::cli::TrainArgs;
 use crate::config::Config;
 use crate::service::objects::object_of;
-use crate::world::World;
 use ember_engine::experience::{Database, Experience, ExperienceParams};
 use ember_engine::scene::pose_from_xyz_xyzw;
+use ember_engine::world::model::World;
 use ember_sdk::session::{Event, Session, TopicMap};
 use ember_sdk::wire;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -35,7 +35,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<ExitCode> {
                 .expect("valid template"),
         );
         bar.set_message(file.display().to_string());
-        let mut world = World::new(&config);
+        let mut world = World::new(&config.world_params());
         let mut requests = std::collections::HashMap::new();
         let read = session.for_each(
             args.allow_truncated,

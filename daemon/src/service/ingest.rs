@@ -8,8 +8,8 @@ use super::objects::{ObjectInput, ObjectsPort};
 use super::{Rejection, SnapshotCell, Stats, IDLE_WAIT};
 use crate::config::Config;
 use crate::recorder::Recorder;
-use crate::world::World;
 use ember_engine::robot::Robot;
+use ember_engine::world::model::World;
 use ember_sdk::client::now_ns;
 use ember_sdk::monitor::InputsDoc;
 use ember_sdk::recording::Event;
@@ -53,7 +53,7 @@ impl Ingest {
             .listener_builder()
             .create()
             .map_err(|e| anyhow::anyhow!("inputs wake-up listener: {e:?}"))?;
-        let mut world = World::new(&self.config);
+        let mut world = World::new(&self.config.world_params());
         let max_extent = self.config.map.max_object_extent();
         let max_objects = self.config.limits.objects;
         let (mut cloud_gaps, mut object_gaps, mut joint_gaps) = Default::default();

@@ -21,8 +21,8 @@ pub mod status;
 
 pub use rejection::Rejection;
 
-use crate::world::Snapshot;
 use ember_engine::experience::{Database, Experience};
+use ember_engine::world::model::Snapshot;
 use ember_sdk::monitor::{DatabaseDoc, InputsDoc, MapDoc, PlansDoc, WorldDoc};
 use ember_sdk::wire::PlanResponseHeader;
 use std::sync::{Arc, Mutex};

@@ -4,11 +4,11 @@
 use super::decode::{decode, method_code};
 use crate::config::Config;
 use crate::service::SnapshotCell;
-use crate::world::Snapshot;
 use ember_engine::experience::Experience;
 use ember_engine::planning::{self, Cancel, PlanError};
 use ember_engine::robot::{ConfigError, Robot};
 use ember_engine::trajectory::Trajectory;
+use ember_engine::world::model::Snapshot;
 use ember_sdk::recording::{self, Event};
 use ember_sdk::wire::plan::MAX_PLAN_VALUES;
 use ember_sdk::wire::{self, PlanRequestHeader, PlanResponseHeader, TrajectoryBlock};

@@ -1,16 +1,27 @@
-//! The daemon's world model, kept up to date incrementally by the ingest thread, and the
-//! immutable snapshots the planner works on.
+//! The world model: objects, the occupancy map and their decompositions (SPARK pairs, FLAME
+//! octoboxes), kept up to date one input at a time, and the immutable snapshots planning works
+//! on. The daemon's ingest thread owns one; `ember train` rebuilds one from a recording.
 
-use crate::config::Config;
-use ember_engine::experience::flame::{octoboxes, Octobox};
-use ember_engine::experience::spark::{PairSet, PairsSnapshot};
-use ember_engine::experience::ExperienceParams;
-use ember_engine::robot::spheres::PlacedSpheres;
-use ember_engine::robot::Robot;
-use ember_engine::scene::Scene;
-use ember_engine::world::map::{InsertReport, MapParams, OccupancyMap};
-use ember_engine::world::{Environment, Object};
+use super::map::{InsertReport, MapParams, OccupancyMap};
+use super::{Environment, Object};
+use crate::experience::flame::{octoboxes, Octobox};
+use crate::experience::spark::{PairSet, PairsSnapshot};
+use crate::experience::ExperienceParams;
+use crate::robot::spheres::PlacedSpheres;
+use crate::robot::Robot;
+use crate::scene::Scene;
 use std::sync::Arc;
+
+/// How a world is kept.
+#[derive(Debug, Clone)]
+pub struct WorldParams {
+    /// The occupancy map's settings.
+    pub map: MapParams,
+    /// Whether planning avoids the map as well as the objects.
+    pub use_map: bool,
+    /// Cloud points within this of the robot's spheres are dropped (the self-filter), metres.
+    pub self_filter_padding: f64,
+}
 
 /// What the planner sees: a consistent copy of the world at one instant.
 pub struct Snapshot {
@@ -44,22 +55,16 @@ pub struct World {
 
 impl World {
     /// An empty world.
-    pub fn new(config: &Config) -> Self {
+    pub fn new(params: &WorldParams) -> Self {
         World {
             scene: Scene::default(),
             pairs: PairSet::new(&ExperienceParams::default()),
             env: Environment::new(),
-            map: Arc::new(OccupancyMap::new(MapParams {
-                resolution: config.map.resolution,
-                max_range: config.map.max_range,
-                bounds: Some((config.map.bounds_min, config.map.bounds_max)),
-                discretize: config.map.discretize,
-                ..Default::default()
-            })),
+            map: Arc::new(OccupancyMap::new(params.map.clone())),
             octoboxes: Arc::default(),
             joints: None,
-            use_map: config.planner.use_map,
-            padding: config.map.self_filter_padding,
+            use_map: params.use_map,
+            padding: params.self_filter_padding,
             objects_version: 0,
         }
     }
@@ -82,12 +87,12 @@ impl World {
         }
     }
 
-    /// Removes an object and its pairs; false when unknown.
     /// True when no object of this name exists and the world already holds `max` objects.
     pub fn would_exceed(&self, name: &str, max: usize) -> bool {
         self.scene.objects.len() >= max && !self.scene.objects.iter().any(|o| o.name == name)
     }
 
+    /// Removes an object and its pairs; false when unknown.
     pub fn remove_object(&mut self, name: &str) -> bool {
         let before = self.scene.objects.len();
         self.objects_version += 1;
@@ -108,7 +113,7 @@ impl World {
         &mut self,
         robot: &Robot,
         points: &[[f32; 3]],
-        sensor_pose: &ember_engine::Pose,
+        sensor_pose: &crate::Pose,
     ) -> InsertReport {
         let filter = self
             .joints
