@@ -10,7 +10,8 @@
 //! - `retrieval`: SPARK and FLAME retrieval time against database size (against linear scans);
 //! - `paper`: the paper's experiments (training-size sweep, retrieval scaling), tables and plots;
 //! - `validity --problems DIR...`: start/goal verdicts against an exact FCL mesh checker;
-//! - `trajectory`: time-optimal parameterisation time and durations against `toppra`.
+//! - `trajectory`: time-optimal parameterisation time and durations against `toppra`;
+//! - `world`: the world model's upkeep (SPARK pairs, snapshots) under thousands of objects.
 
 mod collision;
 mod daemon;
@@ -28,6 +29,7 @@ mod retrieval;
 
 mod trajectory;
 mod validity;
+mod world;
 
 use clap::{Parser, Subcommand};
 
@@ -46,6 +48,8 @@ enum Bench {
     Plan(plan::Args),
     /// Occupancy map insertion against OctoMap (Python peer) on the same frames.
     Map(map::Args),
+    /// The world model's upkeep under many tracked objects.
+    World(world::Args),
     /// Learn SPARK and FLAME from a training set, compare them with uniform sampling on test sets.
     Experience(experience::Args),
     /// Cloud hand-off latency and plan round-trip overhead through a real daemon.
@@ -69,6 +73,7 @@ fn main() -> anyhow::Result<()> {
         Bench::Collision(a) => collision::run(a),
         Bench::Plan(a) => plan::run(a),
         Bench::Map(a) => map::run(a),
+        Bench::World(a) => world::run(a),
         Bench::Experience(a) => experience::run(a),
         Bench::Ipc(a) => ipc::run(a),
         Bench::Monitor(a) => monitor::run(a),

@@ -466,24 +466,15 @@ impl Client {
             })
             .map_err(transport)?;
         self.wake(Wake::Requests);
-        let deadline = Instant::now() + timeout;
-        loop {
-            if let Some(r) = pending.receive().map_err(transport)? {
-                let r = *r.payload();
-                return match Status::from_code(r.status) {
-                    Some(Status::Ok) => Ok(r.cancelled),
-                    _ => Err(ClientError::Transport(format!(
-                        "the daemon refused the cancel request (status {}, protocol version {})",
-                        r.status, r.version
-                    ))),
-                };
-            }
-            if Instant::now() >= deadline {
-                return Err(ClientError::Timeout(timeout));
-            }
-            if self.node.wait(Duration::from_micros(50)).is_err() {
-                return Err(ClientError::Transport("interrupted".into()));
-            }
+        let r = self.reply_within(timeout, || {
+            Ok(pending.receive().map_err(transport)?.map(|r| *r.payload()))
+        })?;
+        match Status::from_code(r.status) {
+            Some(Status::Ok) => Ok(r.cancelled),
+            _ => Err(ClientError::Transport(format!(
+                "the daemon refused the cancel request (status {}, protocol version {})",
+                r.status, r.version
+            ))),
         }
     }
 
@@ -491,10 +482,21 @@ impl Client {
     pub fn status(&self, timeout: Duration) -> Result<wire::StatusReply, ClientError> {
         let pending = self.status.send_copy(0).map_err(transport)?;
         self.wake(Wake::Requests);
+        self.reply_within(timeout, || {
+            Ok(pending.receive().map_err(transport)?.map(|r| *r.payload()))
+        })
+    }
+
+    /// Polls `receive` (every 50 µs) until it gives a reply or `timeout` passes.
+    fn reply_within<T>(
+        &self,
+        timeout: Duration,
+        mut receive: impl FnMut() -> Result<Option<T>, ClientError>,
+    ) -> Result<T, ClientError> {
         let deadline = Instant::now() + timeout;
         loop {
-            if let Some(r) = pending.receive().map_err(transport)? {
-                return Ok(*r.payload());
+            if let Some(r) = receive()? {
+                return Ok(r);
             }
             if Instant::now() >= deadline {
                 return Err(ClientError::Timeout(timeout));

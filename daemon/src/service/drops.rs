@@ -7,8 +7,13 @@ use std::collections::HashMap;
 /// The last number seen per publisher of one input kind.
 #[derive(Debug, Default)]
 pub struct Gaps {
-    last: HashMap<u128, u64>,
+    /// Per publisher: its last number, and when it was last heard from (a message count).
+    last: HashMap<u128, (u64, u64)>,
+    heard: u64,
 }
+
+/// Publishers remembered at most (clients come and go; the longest silent is forgotten).
+const REMEMBERED: usize = 4096;
 
 impl Gaps {
     /// Notes message `seq` from `publisher`; returns how many of its messages were skipped
@@ -19,12 +24,21 @@ impl Gaps {
         if seq == 0 {
             return 0;
         }
-        // Publishers come and go: forget the oldest when too many are remembered.
-        if self.last.len() >= 4096 && !self.last.contains_key(&publisher) {
-            self.last.clear();
+        self.heard += 1;
+        if self.last.len() >= REMEMBERED && !self.last.contains_key(&publisher) {
+            // Forget the publisher silent longest (forgetting all would count every live
+            // publisher's numbers so far as dropped).
+            if let Some(&oldest) = self
+                .last
+                .iter()
+                .min_by_key(|(_, (_, at))| *at)
+                .map(|(p, _)| p)
+            {
+                self.last.remove(&oldest);
+            }
         }
-        match self.last.insert(publisher, seq) {
-            Some(last) if seq > last => seq - last - 1,
+        match self.last.insert(publisher, (seq, self.heard)) {
+            Some((last, _)) if seq > last => seq - last - 1,
             Some(_) => 0,
             None => seq - 1,
         }
@@ -47,5 +61,27 @@ mod tests {
         assert_eq!(sut.saw(1, 3), 1);
         assert_eq!(sut.saw(3, 0), 0, "unnumbered");
         assert_eq!(sut.saw(3, 0), 0);
+    }
+
+    #[test]
+    fn many_publishers_forget_the_silent_one_not_the_live_ones() {
+        let mut sut = Gaps::default();
+        assert_eq!(sut.saw(0, 1), 0);
+        for p in 1..super::REMEMBERED as u128 {
+            assert_eq!(sut.saw(p, 1), 0);
+        }
+        // Publisher 1 keeps publishing; a new one makes room by forgetting 0, the oldest.
+        assert_eq!(sut.saw(1, 2), 0);
+        assert_eq!(sut.saw(99_999, 1), 0);
+        assert_eq!(
+            sut.saw(1, 3),
+            0,
+            "a live publisher is still known: nothing dropped"
+        );
+        assert_eq!(
+            sut.saw(0, 7),
+            6,
+            "the forgotten one counts from its first number again"
+        );
     }
 }
