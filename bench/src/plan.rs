@@ -2,7 +2,11 @@
 //!
 //! Flags: `--robot` (default: the folder's `config.yaml`, else fetch) with `--srdf`, `--group`,
 //! `--package-path`, `--sphere-protrusion`; `--time-limit S` per problem (default 10),
-//! `--seed N`, `--no-simplify`, `--range R`. For each folder prints success, refusals and
+//! `--seed N`, `--no-simplify`, `--range R`. With `--clouds DIR` the obstacles are not the
+//! scene's objects but the point cloud `DIR/<set>/cloudNNNN.pcd` (ASCII PCD, x y z in the base
+//! frame, as the VAMP peer writes them), its points marked occupied in an occupancy map at
+//! `--cloud-resolution` (default 0.01 m); problems without a cloud are skipped (VAMP found
+//! them invalid). For each folder prints success, refusals and
 //! planning-time statistics (planning = IK + search; simplification and the exact validation
 //! reported apart) and ends with `RESULT plan set=<folder> n=<problems> solved=<count>
 //! median_ms=<f> mean_ms=<f> p95_ms=<f> start_refused=<k> goal_refused=<k>
@@ -14,8 +18,11 @@ use ember_engine::planning::PlanError;
 use ember_engine::planning::{self, PlanRequest, PlannerParams, UniformSampler};
 use ember_engine::problems::ProblemSet;
 use ember_engine::robot::RobotArgs;
+use ember_engine::world::map::{MapParams, OccupancyMap};
+use ember_engine::world::Environment;
 use ember_sdk::stats::summary;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 #[derive(clap::Args)]
@@ -38,6 +45,12 @@ pub struct Args {
     /// RRT-Connect range (longest extension); default: the planner's.
     #[arg(long)]
     range: Option<f64>,
+    /// Plan against point clouds instead of the scenes' objects: `DIR/<set>/cloudNNNN.pcd`.
+    #[arg(long)]
+    clouds: Option<PathBuf>,
+    /// Voxel size of the map built from each cloud, metres.
+    #[arg(long, default_value_t = 0.01)]
+    cloud_resolution: f64,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -70,8 +83,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let (mut solved, mut start_refused, mut goal_refused) = (0, 0, 0);
         let mut split = Split::default();
         let (mut iterations, mut nodes) = (Vec::new(), Vec::new());
+        let mut map_ms = Vec::new();
         for p in &set.problems {
-            let env = p.scene.environment()?;
+            let env = match &args.clouds {
+                None => p.scene.environment()?,
+                Some(dir) => {
+                    let file = dir.join(&set.name).join(format!("cloud{:04}.pcd", p.index));
+                    if !file.exists() {
+                        continue;
+                    }
+                    let t = Instant::now();
+                    let env = cloud_environment(&file, args.cloud_resolution)?;
+                    map_ms.push(t.elapsed().as_secs_f64() * 1e3);
+                    env
+                }
+            };
             let robot = p.scene.robot_with(&robot, &p.request.start_joints)?;
             let req = PlanRequest {
                 start: p.request.start.clone(),
@@ -106,8 +132,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 }
             }
         }
-        let n = set.problems.len();
+        let n = times.len();
         let (median, mean, p95) = summary(&mut times);
+        let cloud_keys = if args.clouds.is_some() {
+            let (map_median, _, _) = summary(&mut map_ms);
+            format!(
+                " clouds=1 cloud_resolution={} map_build_ms={map_median:.3}",
+                args.cloud_resolution
+            )
+        } else {
+            String::new()
+        };
         let (simp, _, _) = summary(&mut simplify);
         let (val, _, _) = summary(&mut validate);
         let (median_iterations, _, _) = summary(&mut iterations);
@@ -120,7 +155,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "RESULT plan set={} n={n} solved={solved} median_ms={median:.3} mean_ms={mean:.3} \
              p95_ms={p95:.3} start_refused={start_refused} goal_refused={goal_refused} \
              simplify_ms={simp:.3} validate_ms={val:.3} median_iterations={median_iterations:.0} \
-             median_nodes={median_nodes:.0} {}",
+             median_nodes={median_nodes:.0} {}{cloud_keys}",
             set.name,
             split.keys()
         ));
@@ -130,6 +165,37 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("{line}");
     }
     Ok(())
+}
+
+/// An environment holding only the points of an ASCII PCD file (x y z first), as occupied
+/// voxels of a map with the clearance grid built (map building is not planning time).
+fn cloud_environment(file: &Path, resolution: f64) -> anyhow::Result<Environment> {
+    let text = std::fs::read_to_string(file)?;
+    let mut map = OccupancyMap::new(MapParams {
+        resolution,
+        ..Default::default()
+    });
+    let mut in_data = false;
+    for line in text.lines() {
+        if !in_data {
+            in_data = line.starts_with("DATA");
+            anyhow::ensure!(
+                !in_data || line.trim() == "DATA ascii",
+                "{}: only ASCII PCD is read",
+                file.display()
+            );
+            continue;
+        }
+        let mut v = line.split_whitespace().map(str::parse::<f64>);
+        match (v.next(), v.next(), v.next()) {
+            (Some(Ok(x)), Some(Ok(y)), Some(Ok(z))) => map.set_voxel(map.key_of([x, y, z]), true),
+            _ => anyhow::bail!("{}: bad point line {line:?}", file.display()),
+        }
+    }
+    map.clearance();
+    let mut env = Environment::new();
+    env.set_map(Some(Arc::new(map)));
+    Ok(env)
 }
 
 /// Where the search time of the solved problems went, summed over the set.

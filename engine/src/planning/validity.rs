@@ -20,7 +20,7 @@ use crate::world::Environment;
 pub struct Validity<'a> {
     robot: &'a Robot,
     spheres: SphereChecker<'a>,
-    /// Edge states eight at a time; `None` with an occupancy map (or when disabled).
+    /// Edge states eight at a time; `None` when the batch checker cannot take the scene.
     batch: Option<BatchChecker>,
     exact: ExactChecker<'a>,
     anchors: Vec<Vec<f64>>,

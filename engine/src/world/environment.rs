@@ -127,6 +127,11 @@ impl Environment {
         self.map.as_deref()
     }
 
+    /// The occupancy map, shared.
+    pub(crate) fn shared_map(&self) -> Option<Arc<OccupancyMap>> {
+        self.map.clone()
+    }
+
     /// The objects, in insertion order.
     pub fn objects(&self) -> &[Object] {
         &self.objects

@@ -13,8 +13,9 @@
 //! Radii are enlarged by [`MARGIN`] (0.1 mm, far above `f32` rounding at robot scale), so a
 //! batch found free is free for the scalar checker too; a batch in contact is handed back to
 //! the scalar checker state by state ([`Validity`](crate::planning::validity::Validity) does),
-//! so the planner's verdicts are the scalar checker's, found faster. Maps are not handled here:
-//! with an occupancy map the planner stays on the scalar path.
+//! so the planner's verdicts are the scalar checker's, found faster. An occupancy map is one
+//! more obstacle down the same hierarchy: its [`Clearance`] grid clears most balls in one
+//! read per lane, and a sphere it cannot clear is decided by the map's voxels, lane by lane.
 //!
 //! Compiled twice: for AVX2 (chosen at run time when the CPU has it) and for the baseline
 //! target; the arithmetic is the same (no fused multiply-add).
@@ -25,8 +26,10 @@ use crate::collision::checker::{bisection_order, motion_steps};
 use crate::collision::Shape;
 use crate::robot::fk::JointFrames;
 use crate::robot::{Motion, Robot};
+use crate::world::map::{Clearance, OccupancyMap};
 use crate::world::Environment;
 use lanes::{Pose8, F8, LANES};
+use std::sync::Arc;
 
 /// Stamp of placements that never change (links that do not move).
 const STATIC: u32 = u32::MAX;
@@ -87,6 +90,8 @@ pub struct BatchChecker {
     /// Object world boxes eight objects per vector (`[lo; 3]`, `[hi; 3]`); padding objects
     /// have empty boxes.
     object_boxes: Vec<([F8; 3], [F8; 3])>,
+    /// The occupancy map to avoid, if any.
+    map: Option<Arc<OccupancyMap>>,
     /// Self-collision pairs with a moving link, both with spheres.
     pairs: Vec<(usize, usize)>,
     /// Per-batch state.
@@ -106,13 +111,18 @@ pub struct BatchChecker {
 }
 
 impl BatchChecker {
-    /// A batch checker, or `None` when the environment holds an occupancy map or more than 64
-    /// objects, or a link has more than 64 sphere clusters (the scalar checker handles those).
+    /// A batch checker, or `None` when the environment holds more than 64 objects or a link
+    /// has more than 64 sphere clusters (the scalar checker handles those).
     pub fn new(robot: &Robot, env: &Environment) -> Option<Self> {
         let clusters_per_link = robot.spheres().link_clusters.iter().map(|r| r.len());
-        if env.map().is_some() || env.objects().len() > 64 || clusters_per_link.max() > Some(64) {
+        if env.objects().len() > 64 || clusters_per_link.max() > Some(64) {
             return None;
         }
+        // An empty map is no obstacle; the grid of a non-empty one is built here, not mid-check.
+        let map = env.shared_map().filter(|m| {
+            m.clearance();
+            m.has_occupied()
+        });
         let links = robot.links();
         let model = robot.spheres();
         let f = |v: f64| v as f32;
@@ -249,6 +259,7 @@ impl BatchChecker {
             sphere,
             objects,
             object_boxes,
+            map,
             pairs,
             poses: vec![Pose8::default(); n_links],
             bounds: vec![[F8::default(); 3]; n_links],
@@ -484,33 +495,27 @@ impl BatchChecker {
 
     #[inline(always)]
     fn env_contact(&mut self) -> bool {
-        if self.objects.is_empty() {
+        if self.objects.is_empty() && self.map.is_none() {
             return false;
         }
+        let map = self.map.clone();
+        let map = map.as_deref();
+        let grid = map.and_then(|m| m.clearance());
         for k in 0..self.moving.len() {
             let l = self.moving[k];
             let (_, br) = self.bound[l].unwrap_or_default();
-            // Objects whose world box the link's bound reaches in some lane.
             let b = self.bounds[l];
-            let lo = b.map(|v| F8::splat(v.hmin() - br));
-            let hi = b.map(|v| F8::splat(v.hmax() + br));
-            let mut cand = 0u64;
-            for (block, (olo, ohi)) in self.object_boxes.iter().enumerate() {
-                let mut reach = u32::MAX;
-                for i in 0..3 {
-                    reach &= olo[i].le_mask(hi[i]) & lo[i].le_mask(ohi[i]);
-                }
-                cand |= (reach as u64) << (block * LANES);
-            }
-            let link_mask = penetrated(&self.objects, cand, b, br);
-            if link_mask == 0 {
+            let link_mask = self.objects_reached(b, br);
+            let link_map = map.is_some() && !lanes_clear(grid, b, br);
+            if link_mask == 0 && !link_map {
                 continue;
             }
             for ci in self.link_clusters[l].clone() {
                 self.place_cluster(l, ci);
                 let (c, cr) = (self.cluster_at[ci], self.cluster[ci].1);
                 let cluster_mask = penetrated(&self.objects, link_mask, c, cr);
-                if cluster_mask == 0 {
+                let cluster_map = link_map && !lanes_clear(grid, c, cr);
+                if cluster_mask == 0 && !cluster_map {
                     continue;
                 }
                 self.place_spheres(l, ci);
@@ -522,10 +527,33 @@ impl BatchChecker {
                     if penetrated(&self.objects, cluster_mask, p, r) != 0 {
                         return true;
                     }
+                    if cluster_map && lanes_touch_map(map, grid, p, r) {
+                        return true;
+                    }
                 }
             }
         }
         false
+    }
+
+    /// The objects a link's bound (centres `b` in eight lanes, radius `br`) penetrates in some
+    /// lane, as bits: world boxes first, then the shapes.
+    #[inline(always)]
+    fn objects_reached(&self, b: [F8; 3], br: f32) -> u64 {
+        if self.objects.is_empty() {
+            return 0;
+        }
+        let lo = b.map(|v| F8::splat(v.hmin() - br));
+        let hi = b.map(|v| F8::splat(v.hmax() + br));
+        let mut cand = 0u64;
+        for (block, (olo, ohi)) in self.object_boxes.iter().enumerate() {
+            let mut reach = u32::MAX;
+            for i in 0..3 {
+                reach &= olo[i].le_mask(hi[i]) & lo[i].le_mask(ohi[i]);
+            }
+            cand |= (reach as u64) << (block * LANES);
+        }
+        penetrated(&self.objects, cand, b, br)
     }
 
     #[inline(always)]
@@ -728,6 +756,43 @@ fn overlap(a: [F8; 3], ra: f32, b: [F8; 3], rb: f32) -> bool {
     let (dx, dy, dz) = (a[0] - b[0], a[1] - b[1], a[2] - b[2]);
     let r = ra + rb;
     (dx * dx + dy * dy + dz * dz).any_lt(F8::splat(r * r))
+}
+
+/// True when the grid clears the ball (centres `p`, radius `r`) in every lane.
+#[inline(always)]
+fn lanes_clear(grid: Option<&Clearance>, p: [F8; 3], r: f32) -> bool {
+    // No closures on this path: they would be compiled without the caller's AVX2.
+    match grid {
+        Some(g) => g.unclear8(p, r) == 0,
+        None => false,
+    }
+}
+
+/// True when the ball touches an occupied voxel in some lane: the grid clears what it can,
+/// the map's voxels decide the rest.
+#[inline(always)]
+fn lanes_touch_map(
+    map: Option<&OccupancyMap>,
+    grid: Option<&Clearance>,
+    p: [F8; 3],
+    r: f32,
+) -> bool {
+    let Some(m) = map else {
+        return false;
+    };
+    let mut unclear = match grid {
+        Some(g) => g.unclear8(p, r),
+        None => (1 << LANES) - 1,
+    };
+    while unclear != 0 {
+        let i = unclear.trailing_zeros() as usize;
+        unclear &= unclear - 1;
+        let c = [p[0].0[i], p[1].0[i], p[2].0[i]].map(f64::from);
+        if m.sphere_touches_voxels(c, f64::from(r)) {
+            return true;
+        }
+    }
+    false
 }
 
 /// The objects of `mask` that the ball at `p` with radius `r` penetrates in some lane.

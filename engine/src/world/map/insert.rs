@@ -231,6 +231,7 @@ impl OccupancyMap {
         sensor_pose: &Pose,
         filter: Option<&PlacedSpheres>,
     ) -> InsertReport {
+        self.changed();
         let mut report = InsertReport {
             points: points.len(),
             ..Default::default()

@@ -17,9 +17,11 @@
 //! [`Octobox`] (key and occupancy mask), which is also FLAME's local primitive.
 
 mod bt_file;
+mod clearance;
 mod insert;
 
 pub use bt_file::BtError;
+pub use clearance::Clearance;
 pub use insert::InsertReport;
 
 use rustc_hash::FxHashMap;
@@ -153,7 +155,13 @@ pub struct OccupancyMap {
     /// Per 4×4×4 group of blocks (16³ leaves): how many of its blocks hold an occupied leaf.
     /// The broad phase of [`OccupancyMap::sphere_collides`].
     coarse: FxHashMap<BlockKey, u32>,
+    /// The clearance grid of the current state, built on first use after a change.
+    clearance: std::sync::OnceLock<Option<Clearance>>,
 }
+
+/// How far the clearance grid reaches beyond the occupied voxels, metres: balls larger than
+/// this near the map are decided exactly.
+pub const CLEARANCE_PAD: f64 = 0.15;
 
 /// Bit of leaf `(x, y, z)` (each 0..4) inside its block.
 #[inline]
@@ -174,7 +182,26 @@ impl OccupancyMap {
             blocks: Vec::new(),
             index: FxHashMap::default(),
             coarse: FxHashMap::default(),
+            clearance: Default::default(),
         }
+    }
+
+    /// The clearance grid of the map as it is now (built on the first call after a change;
+    /// `None` when nothing is occupied or the map is spread too wide for a grid).
+    pub fn clearance(&self) -> Option<&Clearance> {
+        self.clearance
+            .get_or_init(|| Clearance::of(self, CLEARANCE_PAD))
+            .as_ref()
+    }
+
+    /// True when some voxel is occupied.
+    pub fn has_occupied(&self) -> bool {
+        !self.coarse.is_empty()
+    }
+
+    /// Forgets derived state after a change.
+    pub(crate) fn changed(&mut self) {
+        self.clearance = Default::default();
     }
 
     /// The settings.
@@ -330,8 +357,18 @@ impl OccupancyMap {
             + self.index.capacity() * (std::mem::size_of::<(BlockKey, u32)>() + 1)
     }
 
-    /// True when a ball at `c` with radius `r` overlaps an occupied voxel (as a cube).
+    /// True when a ball at `c` with radius `r` overlaps an occupied voxel (as a cube): the
+    /// clearance grid first, the voxels near the ball when it cannot tell.
+    #[inline]
     pub fn sphere_collides(&self, c: [f64; 3], r: f64) -> bool {
+        if self.coarse.is_empty() || self.clearance().is_some_and(|g| g.clear(c, r)) {
+            return false;
+        }
+        self.sphere_touches_voxels(c, r)
+    }
+
+    /// [`OccupancyMap::sphere_collides`] without the grid: the voxels near the ball, one by one.
+    pub fn sphere_touches_voxels(&self, c: [f64; 3], r: f64) -> bool {
         let half = self.params.resolution / 2.0;
         self.any_occupied_in(
             [c[0] - r, c[1] - r, c[2] - r],
@@ -412,6 +449,7 @@ impl OccupancyMap {
     }
 
     fn set_logodds(&mut self, k: VoxelKey, v: f32) {
+        self.changed();
         let (b, bit) = Self::split(k);
         let threshold = self.threshold;
         let blk = self.block_mut(b);
@@ -475,7 +513,7 @@ impl Block {
 /// `v` rounded to the nearest integer in the low mantissa bits (larger values give meaningless
 /// keys, never a panic).
 #[inline]
-fn fast_floor(v: f64) -> i32 {
+pub(crate) fn fast_floor(v: f64) -> i32 {
     const MAGIC: f64 = 6_755_399_441_055_744.0;
     let t = (v + MAGIC).to_bits() as u32 as i32;
     t - ((t as f64) > v) as i32
