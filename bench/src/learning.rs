@@ -88,7 +88,14 @@ pub fn train_one(
         .scene
         .robot_with(robot, &problem.request.start_joints)?;
     let map = map_of(&problem.scene)?;
-    experience.learn(&robot, &problem.scene, Some(&map), path, interpolate);
+    let boxes = octoboxes(&map);
+    experience.learn(
+        &robot,
+        &problem.scene,
+        Some((&map, &boxes)),
+        path,
+        interpolate,
+    );
     Ok(())
 }
 

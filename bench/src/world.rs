@@ -38,6 +38,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut world = World::new(&WorldParams {
         map: MapParams::default(),
         use_map: false,
+        carve_padding: None,
         self_filter_padding: 0.03,
     });
     let t = Instant::now();

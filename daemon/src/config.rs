@@ -136,6 +136,8 @@ pub struct MapConfig {
     pub bounds_max: [f64; 3],
     pub max_points: usize,
     pub discretize: bool,
+    pub carve_objects: bool,
+    pub carve_padding: f64,
 }
 
 impl MapConfig {
@@ -270,6 +272,7 @@ impl Config {
             },
             use_map: self.planner.use_map,
             self_filter_padding: self.map.self_filter_padding,
+            carve_padding: self.map.carve_objects.then_some(self.map.carve_padding),
         }
     }
 
@@ -355,6 +358,9 @@ impl Config {
         }
         if self.map.self_filter_padding.is_nan() || self.map.self_filter_padding < 0.0 {
             return Err("key map.self_filter_padding must be >= 0".into());
+        }
+        if !(0.0..=1.0).contains(&self.map.carve_padding) {
+            return Err("key map.carve_padding must be within 0..=1 m".into());
         }
         if (0..3).any(|a| {
             self.map.bounds_min[a].partial_cmp(&self.map.bounds_max[a])

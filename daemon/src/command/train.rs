@@ -83,7 +83,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<ExitCode> {
                             experience.learn(
                                 &robot,
                                 &snap.scene,
-                                Some(&snap.map),
+                                Some((&snap.map, &snap.octoboxes)),
                                 &path,
                                 args.interpolate,
                             );

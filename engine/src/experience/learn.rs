@@ -3,13 +3,12 @@
 
 use super::database::Database;
 use super::flame::criticality::flame_critical;
-use super::flame::octoboxes;
 use super::spark::criticality::spark_critical;
 use super::spark::spark_pairs;
 use super::Experience;
 use crate::robot::Robot;
 use crate::scene::Scene;
-use crate::world::map::OccupancyMap;
+use crate::world::map::{OccupancyMap, Octobox};
 
 /// What learning from one path added.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -43,14 +42,14 @@ pub fn path_states(robot: &Robot, path: &[Vec<f64>], step: Option<f64>) -> Vec<V
 }
 
 impl Experience {
-    /// Adds what `path` (solved in `scene`, sensed as `map`) teaches: SPARK learns from the
-    /// scene's objects, FLAME from the map when there is one. `step`: also test states every
+    /// Adds what `path` (solved in `scene`, sensed as `map` with its octoboxes) teaches: SPARK
+    /// learns from the scene's objects, FLAME from the octoboxes when there is a map. `step`: also test states every
     /// `step` along the path's edges (None: waypoints only, as the authors' code does).
     pub fn learn(
         &mut self,
         robot: &Robot,
         scene: &Scene,
-        map: Option<&OccupancyMap>,
+        map: Option<(&OccupancyMap, &[Octobox])>,
         path: &[Vec<f64>],
         step: Option<f64>,
     ) -> Learned {
@@ -65,11 +64,10 @@ impl Experience {
                 self.spark.insert(pair, configs);
             }
         }
-        if let Some(map) = map {
-            let boxes = octoboxes(map);
+        if let Some((map, boxes)) = map {
             out.flame_primitives = boxes.len();
-            let critical = flame_critical(robot, map, &boxes, &states);
-            for (b, configs) in boxes.into_iter().zip(critical) {
+            let critical = flame_critical(robot, map, boxes, &states);
+            for (b, configs) in boxes.iter().copied().zip(critical) {
                 if !configs.is_empty() {
                     out.flame_entries += 1;
                     self.flame.insert(b, configs);

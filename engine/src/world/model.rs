@@ -2,7 +2,7 @@
 //! octoboxes), kept up to date one input at a time, and the immutable snapshots planning works
 //! on. The daemon's ingest thread owns one; `ember train` rebuilds one from a recording.
 
-use super::map::{InsertReport, MapParams, OccupancyMap};
+use super::map::{BlockKey, CloudMask, InsertReport, MapParams, OccupancyMap};
 use super::{Environment, Object};
 use crate::experience::flame::{octoboxes, Octobox};
 use crate::experience::spark::{PairSet, PairsSnapshot};
@@ -21,6 +21,10 @@ pub struct WorldParams {
     pub use_map: bool,
     /// Cloud points within this of the robot's spheres are dropped (the self-filter), metres.
     pub self_filter_padding: f64,
+    /// Tracked objects carved out of the map: cloud points within this distance (metres) of
+    /// one are dropped, and the voxels an object fills are cleared when it arrives or moves;
+    /// FLAME then sees the objects voxelised into its octoboxes. `None`: the map keeps them.
+    pub carve_padding: Option<f64>,
 }
 
 /// What the planner sees: a consistent copy of the world at one instant.
@@ -31,7 +35,8 @@ pub struct Snapshot {
     pub pairs: PairsSnapshot,
     /// The occupancy map (FLAME's input; an obstacle too when configured).
     pub map: Arc<OccupancyMap>,
-    /// The map's non-empty octoboxes (FLAME's primitives), extracted once per cloud.
+    /// The non-empty octoboxes (FLAME's primitives): the map's, and the carved objects'
+    /// voxels, extracted once per change.
     pub octoboxes: Arc<Vec<Octobox>>,
     /// Objects (+ map when configured) for collision checking.
     pub env: Environment,
@@ -46,10 +51,15 @@ pub struct World {
     /// The objects for collision checking (kept with the scene, not rebuilt per snapshot).
     env: Environment,
     map: Arc<OccupancyMap>,
+    /// The map's octoboxes and the union with the objects' (when carving).
+    map_octoboxes: Arc<Vec<Octobox>>,
     octoboxes: Arc<Vec<Octobox>>,
+    /// Per carved object: the blocks its voxels fill, with their masks.
+    object_blocks: rustc_hash::FxHashMap<String, Vec<Octobox>>,
     joints: Option<Vec<f64>>,
     use_map: bool,
     padding: f64,
+    carve: Option<f64>,
     objects_version: u64,
 }
 
@@ -61,21 +71,30 @@ impl World {
             pairs: PairSet::new(&ExperienceParams::default()),
             env: Environment::new(),
             map: Arc::new(OccupancyMap::new(params.map.clone())),
+            map_octoboxes: Arc::default(),
             octoboxes: Arc::default(),
+            object_blocks: Default::default(),
             joints: None,
             use_map: params.use_map,
             padding: params.self_filter_padding,
+            carve: params.carve_padding,
             objects_version: 0,
         }
     }
 
-    /// Adds or moves an object; only its SPARK pairs are recomputed.
+    /// Adds or moves an object; only its SPARK pairs are recomputed. When carving, the voxels
+    /// it now fills are cleared at once.
     pub fn upsert_object(&mut self, object: Object) {
+        let moved = self.env.object(&object.name) != Some(&object);
         self.objects_version += 1;
         self.pairs.upsert(&object);
         self.env
             .upsert(object.clone())
             .expect("objects were validated on arrival");
+        match self.carve {
+            Some(padding) if moved => self.carve_object(&object, padding),
+            _ => {}
+        }
         match self
             .scene
             .objects
@@ -99,6 +118,9 @@ impl World {
         self.scene.objects.retain(|o| o.name != name);
         self.pairs.remove(name);
         let _ = self.env.remove(name);
+        if self.object_blocks.remove(name).is_some() {
+            self.merge_octoboxes();
+        }
         self.scene.objects.len() != before
     }
 
@@ -120,12 +142,78 @@ impl World {
             .as_ref()
             .filter(|q| robot.validate(q).is_ok())
             .map(|q| PlacedSpheres::at(robot, q, self.padding));
+        let mask = CloudMask {
+            robot: filter.as_ref(),
+            objects: self.carve.map(|padding| (&self.env, padding)),
+        };
         let map = Arc::make_mut(&mut self.map);
-        let report = map.insert_cloud(points, sensor_pose, filter.as_ref());
+        let report = map.insert_cloud_masked(points, sensor_pose, &mask);
+        if self.use_map {
+            // The planner's grids, built here rather than on the first plan.
+            map.clearance();
+        }
         if !report.changed.is_empty() {
-            self.octoboxes = Arc::new(octoboxes(map));
+            self.map_octoboxes = Arc::new(octoboxes(map));
+            self.merge_octoboxes();
         }
         report
+    }
+
+    /// Clears the voxels `object` fills (grown by `padding`) and voxelises it for FLAME.
+    fn carve_object(&mut self, object: &Object, padding: f64) {
+        let alone = Environment::from_objects([object.clone()]).expect("validated on arrival");
+        let placed = alone.placed().next().expect("one object");
+        let half = self.map.resolution() / 2.0;
+        let reach = padding + half;
+        let (lo, hi) = (placed.lo.map(|v| v - reach), placed.hi.map(|v| v + reach));
+        let inside = |c: [f64; 3]| alone.sphere_collides(c, reach);
+        if self.map.any_occupied_in(lo, hi, inside) {
+            let map = Arc::make_mut(&mut self.map);
+            map.clear_occupied(lo, hi, inside);
+            self.map_octoboxes = Arc::new(octoboxes(map));
+            if self.use_map {
+                map.clearance();
+            }
+        }
+        // The object's own voxels (centres inside it), block by block.
+        let map = &self.map;
+        let (klo, khi) = (map.key_of(placed.lo), map.key_of(placed.hi));
+        let mut blocks: rustc_hash::FxHashMap<BlockKey, u64> = Default::default();
+        for x in klo[0]..=khi[0] {
+            for y in klo[1]..=khi[1] {
+                for z in klo[2]..=khi[2] {
+                    if alone.sphere_collides(map.voxel_center([x, y, z]), half) {
+                        let (b, bit) = OccupancyMap::split([x, y, z]);
+                        *blocks.entry(b).or_default() |= 1 << bit;
+                    }
+                }
+            }
+        }
+        let blocks = blocks
+            .into_iter()
+            .map(|(key, mask)| Octobox { key, mask })
+            .collect();
+        self.object_blocks.insert(object.name.clone(), blocks);
+        self.merge_octoboxes();
+    }
+
+    /// FLAME's octoboxes: the map's, with the carved objects' voxels added.
+    fn merge_octoboxes(&mut self) {
+        if self.object_blocks.is_empty() {
+            self.octoboxes = self.map_octoboxes.clone();
+            return;
+        }
+        let mut all: rustc_hash::FxHashMap<BlockKey, u64> =
+            self.map_octoboxes.iter().map(|o| (o.key, o.mask)).collect();
+        for o in self.object_blocks.values().flatten() {
+            *all.entry(o.key).or_default() |= o.mask;
+        }
+        let mut v: Vec<Octobox> = all
+            .into_iter()
+            .map(|(key, mask)| Octobox { key, mask })
+            .collect();
+        v.sort_by_key(|o| o.key);
+        self.octoboxes = Arc::new(v);
     }
 
     /// A snapshot of the current state.

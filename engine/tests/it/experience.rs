@@ -599,7 +599,8 @@ fn learning_from_a_path_fills_both_databases() {
         .collect();
     map.insert_cloud(&top, &Pose::identity(), None);
     let mut sut = Experience::new(ExperienceParams::default(), 0.02);
-    let learned = sut.learn(&robot, &scene, Some(&map), &path, Some(0.1));
+    let boxes = ember_engine::experience::flame::octoboxes(&map);
+    let learned = sut.learn(&robot, &scene, Some((&map, &boxes)), &path, Some(0.1));
     let (spark, flame) = (&sut.spark, &sut.flame);
     assert!(learned.spark_primitives >= 2, "{learned:?}");
     assert!(

@@ -9,6 +9,7 @@ mod moveit;
 mod planning;
 mod robot;
 mod trajectory;
+mod world;
 
 /// The repository's `tests/fixtures` folder.
 pub fn fixtures() -> std::path::PathBuf {

@@ -84,7 +84,7 @@ impl Lesson {
     /// Adds what the solution `path` teaches to `experience`.
     pub fn learn(&self, robot: &Robot, path: &[Vec<f64>], experience: &mut Experience) {
         let s = &self.snapshot;
-        experience.learn(robot, &s.scene, Some(&s.map), path, None);
+        experience.learn(robot, &s.scene, Some((&s.map, &s.octoboxes)), path, None);
     }
 }
 

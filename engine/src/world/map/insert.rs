@@ -14,6 +14,7 @@
 
 use super::{bits, BlockKey, Leaves, OccupancyMap, VoxelKey};
 use crate::robot::spheres::PlacedSpheres;
+use crate::world::Environment;
 use crate::Pose;
 
 /// Consecutive already-passed cells after which a repeated ray stops (3: 99.1% voxel agreement
@@ -42,6 +43,8 @@ pub struct InsertReport {
     pub points: usize,
     /// Points removed by the robot self-filter.
     pub filtered: usize,
+    /// Points carved out as lying on a tracked object.
+    pub carved: usize,
     /// Points that were NaN or infinite.
     pub invalid: usize,
     /// Rays cast (distinct endpoint voxels).
@@ -222,6 +225,46 @@ impl Marker<'_> {
     }
 }
 
+/// What is cut out of a cloud before it is folded in.
+#[derive(Clone, Copy, Default)]
+pub struct CloudMask<'a> {
+    /// The robot at its latest joint state, its balls grown by a padding (the self-filter).
+    pub robot: Option<&'a PlacedSpheres>,
+    /// Tracked objects, and how near them (metres) a point is taken as lying on one: such
+    /// points are carved out, as the objects are obstacles already.
+    pub objects: Option<(&'a Environment, f64)>,
+}
+
+/// What a [`CloudMask`] makes of a point.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Masked {
+    /// Folded in.
+    Kept,
+    /// On the robot: dropped.
+    Robot,
+    /// On a tracked object: its ray still clears the free space before it, but it marks
+    /// nothing occupied.
+    Object,
+}
+
+impl CloudMask<'_> {
+    /// What the masks make of `p` (base frame), counted in `report`.
+    #[inline]
+    fn classify(&self, p: [f64; 3], report: &mut InsertReport) -> Masked {
+        if self.robot.is_some_and(|r| r.contains(p)) {
+            report.filtered += 1;
+            return Masked::Robot;
+        }
+        if let Some((env, padding)) = self.objects {
+            if env.sphere_collides(p, padding.max(1e-9)) {
+                report.carved += 1;
+                return Masked::Object;
+            }
+        }
+        Masked::Kept
+    }
+}
+
 impl OccupancyMap {
     /// Inserts a cloud given in the sensor frame, with the sensor's pose in the base frame.
     /// Points on the robot (per `filter`) are dropped first.
@@ -230,6 +273,21 @@ impl OccupancyMap {
         points: &[[f32; 3]],
         sensor_pose: &Pose,
         filter: Option<&PlacedSpheres>,
+    ) -> InsertReport {
+        let mask = CloudMask {
+            robot: filter,
+            objects: None,
+        };
+        self.insert_cloud_masked(points, sensor_pose, &mask)
+    }
+
+    /// [`OccupancyMap::insert_cloud`] with points on the robot and on tracked objects removed
+    /// first (counted apart in the report).
+    pub fn insert_cloud_masked(
+        &mut self,
+        points: &[[f32; 3]],
+        sensor_pose: &Pose,
+        mask: &CloudMask,
     ) -> InsertReport {
         self.changed();
         let mut report = InsertReport {
@@ -268,11 +326,9 @@ impl OccupancyMap {
             let (px, py, pz) = (p[0] as f64, p[1] as f64, p[2] as f64);
             let w =
                 [0, 1, 2].map(|r| rot[(r, 0)] * px + rot[(r, 1)] * py + rot[(r, 2)] * pz + o[r]);
-            if let Some(f) = filter {
-                if f.contains(w) {
-                    report.filtered += 1;
-                    continue;
-                }
+            let masked = mask.classify(w, &mut report);
+            if masked == Masked::Robot {
+                continue;
             }
             // Discretized (as OctoMap does): one ray per distinct endpoint voxel, to its centre.
             let (w, key) = if discretize {
@@ -298,7 +354,8 @@ impl OccupancyMap {
                 let end = [o[0] + d[0] * s, o[1] + d[1] * s, o[2] + d[2] * s];
                 (end, self.key_of(end), false)
             } else {
-                (w, key.unwrap_or_else(|| self.key_of(w)), true)
+                let hit = masked == Masked::Kept;
+                (w, key.unwrap_or_else(|| self.key_of(w)), hit)
             };
             let b = key.map(|v| v >> 2);
             for a in 0..3 {

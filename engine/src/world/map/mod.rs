@@ -22,7 +22,7 @@ mod insert;
 
 pub use bt_file::BtError;
 pub use clearance::Clearance;
-pub use insert::InsertReport;
+pub use insert::{CloudMask, InsertReport};
 
 use rustc_hash::FxHashMap;
 
@@ -440,6 +440,28 @@ impl OccupancyMap {
             }
             _ => {}
         }
+    }
+
+    /// Marks free (clamped) every occupied voxel in the box `[lo, hi]` whose centre `inside`
+    /// accepts: space a newly placed object fills, cleared at once rather than after many rays.
+    /// Returns how many were cleared.
+    pub fn clear_occupied(
+        &mut self,
+        lo: [f64; 3],
+        hi: [f64; 3],
+        inside: impl Fn([f64; 3]) -> bool,
+    ) -> usize {
+        let mut keys = Vec::new();
+        self.any_occupied_in(lo, hi, |c| {
+            if inside(c) {
+                keys.push(self.key_of(c));
+            }
+            false
+        });
+        for &k in &keys {
+            self.set_voxel(k, false);
+        }
+        keys.len()
     }
 
     /// Sets a voxel to `occupied` (clamped log-odds), as reading a binary map does.
