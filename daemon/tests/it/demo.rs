@@ -62,6 +62,10 @@ fn the_demo_plans_with_every_method_through_the_daemon_and_keeps_its_session() {
         assert!(median > 0.0 && mean > 0.0, "{method}: {median} {mean}");
         let retrieval: f64 = r["retrieval_us"].parse().unwrap();
         assert!(retrieval.is_finite() && retrieval >= 0.0);
+        // No returned path touches the true world at the planner's resolution, the box only
+        // the camera sees included.
+        assert_eq!(r["unsafe"], "0", "{method}: {stdout}");
+        assert!(r.contains_key("grazes") && r.contains_key("unseen_obstacles"));
         // Every solved plan came back timed, and the robot takes seconds, not ms, to run it.
         assert_eq!(r["timed"], r["solved"], "{method}");
         let executes: f64 = r["median_duration_s"].parse().unwrap();

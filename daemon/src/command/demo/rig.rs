@@ -4,6 +4,7 @@
 
 use crate::service::objects::update_of;
 use ember_engine::scene::{pose_to_xyz_xyzw, Scene};
+use ember_engine::world::Object;
 use ember_engine::Pose;
 use ember_sdk::wire::{self, ShapeKind};
 use ember_sdk::Client;
@@ -13,9 +14,11 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-/// What the rig streams: the true scene and the robot's joint positions.
+/// What the rig streams: the true scene (tracked by motion capture), objects only the
+/// camera sees, and the robot's joint positions.
 pub struct Truth {
     pub scene: Scene,
+    pub unseen: Vec<Object>,
     pub joints: Vec<f64>,
 }
 
@@ -59,9 +62,12 @@ impl Rig {
         })
     }
 
-    /// Changes the world the sensors see (from the next frame on).
-    pub fn set_scene(&self, scene: Scene) {
-        self.truth.lock().expect("truth lock").scene = scene;
+    /// Changes the world the sensors see (from the next frame on): `scene` for motion capture
+    /// and the camera, `unseen` for the camera only.
+    pub fn set_scene(&self, scene: Scene, unseen: Vec<Object>) {
+        let mut truth = self.truth.lock().expect("truth lock");
+        truth.scene = scene;
+        truth.unseen = unseen;
     }
 
     /// Stops streaming; an error of the rig thread (the daemon gone) comes back here.
@@ -109,9 +115,9 @@ fn stream(
     let mut known: BTreeSet<String> = BTreeSet::new();
     while !stop.load(Ordering::Relaxed) {
         let tick = Instant::now();
-        let (scene, joints) = {
+        let (scene, unseen, joints) = {
             let t = truth.lock().expect("truth lock");
-            (t.scene.clone(), t.joints.clone())
+            (t.scene.clone(), t.unseen.clone(), t.joints.clone())
         };
         // Motion capture: every object's pose; objects that left the scene are removed.
         let names: BTreeSet<String> = scene.objects.iter().map(|o| o.name.clone()).collect();
@@ -124,8 +130,12 @@ fn stream(
         }
         known = names;
         client.publish_joints(&joints)?;
-        // The depth camera: a 320×240 frame of the true scene, with noise and dropout.
-        let env = scene.environment()?;
+        // The depth camera: a 320×240 frame of the true scene, unseen objects included, with
+        // noise and dropout.
+        let mut env = scene.environment()?;
+        for o in unseen {
+            env.add(o)?;
+        }
         let frame = camera.render(&env, &camera_pose);
         let points = &frame.points;
         client.publish_cloud("head_camera", sensor_pose, 0, points.len(), |i| {
