@@ -125,6 +125,8 @@ impl Ingest {
             // One cloud per round: objects and joint states never wait behind a cloud stream
             // that arrives as fast as the map takes it.
             let cloud = clouds.receive(self.config.map.max_points, &mut cloud_gaps);
+            // A cloud folded in this round: (invalid points, stamp, received), counted below.
+            let mut folded = None;
             if let Some((dropped, _)) = &cloud {
                 self.dropped(*dropped, |i| &mut i.dropped_clouds);
             }
@@ -142,12 +144,7 @@ impl Ingest {
                             points: cloud.points().to_vec(),
                         },
                     ));
-                    let mut st = self.stats.inner.lock().expect("stats lock");
-                    st.inputs.clouds += 1;
-                    st.inputs.invalid_points += report.invalid as u64;
-                    st.inputs.last_cloud_stamp_ns = h.stamp_ns;
-                    st.cloud_latency_us
-                        .push(recv_ns.saturating_sub(h.stamp_ns) as f64 / 1e3);
+                    folded = Some((report.invalid as u64, h.stamp_ns, recv_ns));
                     changed = true;
                 }
                 Some(Err(why)) => self.stats.rejected(&why),
@@ -157,7 +154,16 @@ impl Ingest {
                 last_input = std::time::Instant::now();
                 let snap = world.snapshot();
                 {
+                    // The cloud is counted with the map it made: a status that counts it shows
+                    // its voxels.
                     let mut st = self.stats.inner.lock().expect("stats lock");
+                    if let Some((invalid, stamp_ns, recv_ns)) = folded.take() {
+                        st.inputs.clouds += 1;
+                        st.inputs.invalid_points += invalid;
+                        st.inputs.last_cloud_stamp_ns = stamp_ns;
+                        st.cloud_latency_us
+                            .push(recv_ns.saturating_sub(stamp_ns) as f64 / 1e3);
+                    }
                     st.map.blocks = snap.map.block_count() as u64;
                     st.map.occupied_blocks = snap.octoboxes.len() as u64;
                     st.map.memory_bytes = snap.map.memory_bytes() as u64;

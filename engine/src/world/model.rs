@@ -148,10 +148,6 @@ impl World {
         };
         let map = Arc::make_mut(&mut self.map);
         let report = map.insert_cloud_masked(points, sensor_pose, &mask);
-        if self.use_map {
-            // The planner's grids, built here rather than on the first plan.
-            map.clearance();
-        }
         if !report.changed.is_empty() {
             self.map_octoboxes = Arc::new(octoboxes(map));
             self.merge_octoboxes();
@@ -171,9 +167,6 @@ impl World {
             let map = Arc::make_mut(&mut self.map);
             map.clear_occupied(lo, hi, inside);
             self.map_octoboxes = Arc::new(octoboxes(map));
-            if self.use_map {
-                map.clearance();
-            }
         }
         // The object's own voxels (centres inside it), block by block.
         let map = &self.map;
@@ -220,6 +213,9 @@ impl World {
     pub fn snapshot(&self) -> Snapshot {
         let mut env = self.env.clone();
         if self.use_map {
+            // The planner's grids, built here (the ingest thread) once per map state rather
+            // than by the first plan.
+            self.map.clearance();
             env.set_map(Some(self.map.clone()));
         }
         Snapshot {

@@ -250,11 +250,11 @@ pub fn run(args: DemoArgs) -> anyhow::Result<ExitCode> {
             continue;
         };
         // A box only the camera sees, where a plan blind to it would pass.
-        let obstacle = unseen::place(&robot, &env, &camera, (&start, &goal), rng.random());
-        let truth = match &obstacle {
-            Some(o) => unseen::with(&env, o).unwrap_or_else(|| env.clone()),
-            None => env.clone(),
-        };
+        let (obstacle, truth) =
+            match unseen::place(&robot, &env, &camera, (&start, &goal), rng.random()) {
+                Some((o, truth)) => (Some(o), truth),
+                None => (None, env.clone()),
+            };
         with_unseen += obstacle.is_some() as usize;
         // Show the sensors the new scene; plan once the daemon has its objects and fresh frames
         // (enough for the rays to clear where the last box stood).

@@ -19,14 +19,15 @@ const FINE_RESOLUTION: f64 = 0.01;
 /// A box that the path planned from `start` to `goal` in `env` (the tracked objects only)
 /// runs through: centred on the arm's last moving link at the middle of that path (or near
 /// it), in view of the camera at `camera` and not hidden behind an object, where start and
-/// goal stay free. `None` when no such place is found.
+/// goal stay free; with the true world (`env` and the box). `None` when no such place is
+/// found.
 pub fn place(
     robot: &Robot,
     env: &Environment,
     camera: &Pose,
     (start, goal): (&[f64], &[f64]),
     seed: u64,
-) -> Option<Object> {
+) -> Option<(Object, Environment)> {
     let request = PlanRequest {
         start: start.to_vec(),
         goal: Goal::Joints(vec![goal.to_vec()]),
@@ -56,10 +57,11 @@ pub fn place(
             shape: Shape::cuboid([SIDE; 3]),
             pose: Pose::translation(c.x, c.y, c.z),
         };
-        let truth = with(env, &obstacle)?;
+        let mut truth = env.clone();
+        truth.add(obstacle.clone()).ok()?;
         let mut exact = ExactChecker::new(robot, &truth);
         if exact.is_valid(start) && exact.is_valid(goal) {
-            return Some(obstacle);
+            return Some((obstacle, truth));
         }
     }
     None
@@ -77,13 +79,6 @@ fn in_view(env: &Environment, camera: &Pose, c: [f64; 3]) -> bool {
     let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
     let dir = d.map(|v| v / len);
     env.ray_cast([o.x, o.y, o.z], dir, len - SIDE).is_none()
-}
-
-/// `env` with `obstacle` added.
-pub fn with(env: &Environment, obstacle: &Object) -> Option<Environment> {
-    let mut truth = env.clone();
-    truth.add(obstacle.clone()).ok()?;
-    Some(truth)
 }
 
 /// How a returned path fares in the true world (the exact geometry).

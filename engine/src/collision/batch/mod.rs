@@ -498,9 +498,19 @@ impl BatchChecker {
         if self.objects.is_empty() && self.map.is_none() {
             return false;
         }
-        let map = self.map.clone();
-        let map = map.as_deref();
-        let grid = map.and_then(|m| m.clearance());
+        // Moved out while the placements are written, and back: no reference count per batch.
+        let map = self.map.take();
+        let hit = self.env_contact_with(map.as_deref());
+        self.map = map;
+        hit
+    }
+
+    #[inline(always)]
+    fn env_contact_with(&mut self, map: Option<&OccupancyMap>) -> bool {
+        let grid = match map {
+            Some(m) => m.clearance(),
+            None => None,
+        };
         for k in 0..self.moving.len() {
             let l = self.moving[k];
             let (_, br) = self.bound[l].unwrap_or_default();
