@@ -344,13 +344,52 @@ impl Client {
         Ok(())
     }
 
-    /// Publishes one object (add or move).
+    /// Publishes one object (add or move) in the base frame.
     pub fn publish_object(
         &self,
         id: &str,
         shape: ShapeKind,
         dims: [f64; 3],
         pose: [f64; 7],
+    ) -> Result<(), ClientError> {
+        self.send_object(id, shape, dims, pose, "")
+    }
+
+    /// Tells the daemon the robot holds the tracked object `id` on `link`, at `grasp` in the
+    /// link's frame: it leaves the world and moves with the robot (in planning, and in the
+    /// map's self-filter) until [`Client::detach`]. A refusal (unknown object or link, already
+    /// held, touching the robot at the current joint state) is counted in the status reply
+    /// with its reason ([`wire::StatusReply::last_rejection`]).
+    pub fn attach(&self, id: &str, link: &str, grasp: [f64; 7]) -> Result<(), ClientError> {
+        self.send_object(id, ShapeKind::Tracked, [0.0; 3], grasp, link)
+    }
+
+    /// As [`Client::attach`], for an object given by its shape (replacing a tracked object of
+    /// the same id, if any).
+    pub fn attach_shape(
+        &self,
+        id: &str,
+        link: &str,
+        shape: ShapeKind,
+        dims: [f64; 3],
+        grasp: [f64; 7],
+    ) -> Result<(), ClientError> {
+        self.send_object(id, shape, dims, grasp, link)
+    }
+
+    /// Tells the daemon the robot let go of `id`: it is a world object again, at `pose` in the
+    /// base frame.
+    pub fn detach(&self, id: &str, pose: [f64; 7]) -> Result<(), ClientError> {
+        self.send_object(id, ShapeKind::Tracked, [0.0; 3], pose, "")
+    }
+
+    fn send_object(
+        &self,
+        id: &str,
+        shape: ShapeKind,
+        dims: [f64; 3],
+        pose: [f64; 7],
+        link: &str,
     ) -> Result<(), ClientError> {
         let update = ObjectUpdate {
             version: PROTOCOL_VERSION,
@@ -360,6 +399,7 @@ impl Client {
             dims,
             pose,
             seq: self.next_seq(1),
+            link: wire::name(link),
         };
         self.objects.send_copy(update).map_err(transport)?;
         self.wake(Wake::Inputs);

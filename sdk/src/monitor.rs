@@ -100,6 +100,15 @@ impl From<&StatusDoc> for crate::wire::StatusReply {
             dropped_clouds: d.inputs.dropped_clouds,
             dropped_objects: d.inputs.dropped_objects,
             dropped_joints: d.inputs.dropped_joints,
+            world_attached: d.world.attached,
+            last_rejection: {
+                let mut m = [0u8; 128];
+                let b = d.inputs.last_rejection.as_bytes();
+                let n = b.len().min(m.len());
+                m[..n].copy_from_slice(&b[..n]);
+                m
+            },
+            last_rejection_status: d.inputs.last_rejection_status,
         }
     }
 }
@@ -116,6 +125,10 @@ pub struct InputsDoc {
     pub joint_states: u64,
     /// Inputs and requests rejected as malformed.
     pub rejected: u64,
+    /// Why an input was last refused (empty: never).
+    pub last_rejection: String,
+    /// The status code of that refusal (`ember_sdk::Status`; 0: none).
+    pub last_rejection_status: u32,
     /// Clouds per second over the last status period.
     pub cloud_hz: f64,
     /// Object updates per second over the last status period.
@@ -162,6 +175,8 @@ pub struct WorldDoc {
     pub objects: u64,
     /// SPARK pairs among them.
     pub spark_pairs: u64,
+    /// Objects the robot holds.
+    pub attached: u64,
 }
 
 /// Experience database statistics (also answered on `ember/<instance>/database`).

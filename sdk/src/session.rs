@@ -233,7 +233,8 @@ impl Session {
             let ember = topic.starts_with("/ember/");
             let event = match (topic, topics.role(topic)) {
                 (recording::topic::OBJECTS, _) => {
-                    let o: recording::ObjectUpdate = recording::decode(&m.data).map_err(bad)?;
+                    let schema = m.channel.schema.as_ref().map_or(&[][..], |s| &s.data[..]);
+                    let o = recording::ObjectUpdate::decode(&m.data, schema).map_err(bad)?;
                     Event::Object(ObjectUpdate::from(&o))
                 }
                 (recording::topic::PLAN_REQUEST, _) => {
@@ -304,6 +305,7 @@ impl Session {
                         dims,
                         pose: pose.pose.to_wire(),
                         seq: 0,
+                        link: [0; 32],
                     })
                 }
                 _ => continue,

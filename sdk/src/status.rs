@@ -32,6 +32,14 @@ pub enum Status {
     Internal = 12,
     /// The plan was cancelled before it finished (the daemon is stopping).
     Cancelled = 13,
+    /// An input names an object the world does not hold (removal, attach by id).
+    UnknownObject = 14,
+    /// An attach names an object the robot already holds (or a report moves a held one).
+    AlreadyAttached = 15,
+    /// A detach names an object the robot does not hold.
+    NotAttached = 16,
+    /// An attached object would touch the robot at the current joint state.
+    AttachCollides = 17,
 }
 
 impl Status {
@@ -53,6 +61,10 @@ impl Status {
             UnknownLink,
             Internal,
             Cancelled,
+            UnknownObject,
+            AlreadyAttached,
+            NotAttached,
+            AttachCollides,
         ]
         .into_iter()
         .find(|s| *s as u32 == code)
@@ -76,6 +88,10 @@ impl Status {
             UnknownLink => "unknown_link",
             Internal => "internal",
             Cancelled => "cancelled",
+            UnknownObject => "unknown_object",
+            AlreadyAttached => "already_attached",
+            NotAttached => "not_attached",
+            AttachCollides => "attach_collides",
         }
     }
 }

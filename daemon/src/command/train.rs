@@ -5,12 +5,11 @@
 
 use crate::cli::TrainArgs;
 use crate::config::Config;
-use crate::service::objects::object_of;
+use crate::service::objects::change_of;
 use ember_engine::experience::{Database, Experience, ExperienceParams};
 use ember_engine::scene::pose_from_xyz_xyzw;
 use ember_engine::world::model::World;
 use ember_sdk::session::{Event, Session, TopicMap};
-use ember_sdk::wire;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::process::ExitCode;
 
@@ -43,13 +42,12 @@ pub fn run(args: TrainArgs) -> anyhow::Result<ExitCode> {
             |_, event| -> anyhow::Result<()> {
                 bar.inc(1);
                 match event {
-                    Event::Object(u) => match object_of(&u) {
-                        Ok(Some(obj)) => world.upsert_object(obj),
-                        Ok(None) => {
-                            world.remove_object(&wire::name_str(&u.id));
+                    Event::Object(u) => {
+                        // What the daemon refused, it refused too: the world is unchanged.
+                        if let Ok(change) = change_of(&u) {
+                            let _ = world.apply(&robot, change);
                         }
-                        Err(_) => {} // The daemon rejected it too.
-                    },
+                    }
                     Event::Joints {
                         names, positions, ..
                     } => {
@@ -81,7 +79,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<ExitCode> {
                                 r.path.chunks_exact(dof).map(<[f64]>::to_vec).collect();
                             let snap = at_request.unwrap_or_else(|| world.snapshot());
                             experience.learn(
-                                &robot,
+                                snap.robot(&robot),
                                 &snap.scene,
                                 Some((&snap.map, &snap.octoboxes)),
                                 &path,

@@ -6,11 +6,11 @@
 
 include!("../../../tests/fixtures/fuzzing.rs");
 
-use super::objects::ObjectInput;
 use super::{cloud, joints, objects, plan};
 use crate::config::Config;
 use ember_engine::experience::Method;
 use ember_engine::robot::Robot;
+use ember_engine::world::model::{ObjectChange, World};
 use ember_sdk::wire::{self, CloudHeader, JointState, ObjectUpdate, PlanRequestHeader};
 use fuzzing::{cases, runner};
 use proptest::prelude::*;
@@ -146,33 +146,75 @@ fn fuzz_inputs() {
             }
         },
     );
+    // Object updates, decoded and applied to one world that lives through all of them (the
+    // robot at rest, so attaching checks contact): any id, shape code and link, with real link
+    // names and a few recurring ids among them so attach, detach and remove meet held objects.
+    let tip = robot.links()[robot.tip()].name.clone();
+    let link = prop_oneof![
+        3 => Just([0u8; 32]),
+        2 => Just(wire::name(&tip)),
+        1 => name(),
+    ];
+    let id = prop_oneof![
+        3 => prop::sample::select(vec!["a", "b"]).prop_map(wire::name),
+        1 => name(),
+    ];
     let object = (
-        (code(wire::PROTOCOL_VERSION), code(1), name()),
+        (code(wire::PROTOCOL_VERSION), code(1), id, link),
         (
             prop::array::uniform3(number()),
             prop::array::uniform7(number()),
         ),
     );
     let max_extent = config.map.max_object_extent();
+    let world = std::cell::RefCell::new(World::new(&config.world_params()));
+    world.borrow_mut().set_joints(robot.middle());
+    let (fitted, attached) = (std::cell::Cell::new(0), std::cell::Cell::new(0));
     fuzz(
         "object update",
         object,
         cases(20_000),
-        |((version, shape, id), (dims, pose))| {
+        |((version, shape, id, link), (dims, pose))| {
             let u = ObjectUpdate {
                 version,
                 shape,
                 id,
                 dims,
                 pose,
+                link,
                 ..Default::default()
             };
-            if let Ok(ObjectInput::Upsert(o)) = objects::decode(&u, max_extent) {
+            let Ok(change) = objects::decode(&u, max_extent) else {
+                return;
+            };
+            // Attaching a new shape fits spheres to it (tens to hundreds of ms): a few suffice.
+            if matches!(change, ObjectChange::Attach { shape: Some(_), .. }) {
+                if fitted.get() >= 30 {
+                    return;
+                }
+                fitted.set(fitted.get() + 1);
+            }
+            let mut world = world.borrow_mut();
+            if let ObjectChange::Upsert(o) = &change {
                 assert!(o.pose.translation.vector.iter().all(|x| x.is_finite()));
                 assert!(o.shape.bounding_radius().is_finite());
+                if world.would_exceed(&o.name, config.limits.objects) {
+                    return; // Refused before it reaches the world, as the ingest thread does.
+                }
             }
+            let attach = matches!(change, ObjectChange::Attach { .. });
+            if world.apply(&robot, change).is_ok() && attach {
+                attached.set(attached.get() + 1);
+            }
+            let snap = world.snapshot();
+            assert_eq!(
+                snap.robot(&robot).links().len(),
+                robot.links().len() + snap.scene.attached.len()
+            );
         },
     );
+    eprintln!("  of which {} attached an object", attached.get());
+    assert!(attached.get() > 0, "the generator never attaches");
     let dof = robot.dof() as u32;
     let joint = (
         code(wire::PROTOCOL_VERSION),

@@ -4,12 +4,12 @@
 
 use super::cloud::CloudPort;
 use super::joints::JointsPort;
-use super::objects::{ObjectInput, ObjectsPort};
+use super::objects::ObjectsPort;
 use super::{Rejection, SnapshotCell, Stats, IDLE_WAIT};
 use crate::config::Config;
 use crate::recorder::Recorder;
 use ember_engine::robot::Robot;
-use ember_engine::world::model::World;
+use ember_engine::world::model::{ObjectChange, World};
 use ember_sdk::client::now_ns;
 use ember_sdk::monitor::InputsDoc;
 use ember_sdk::recording::Event;
@@ -100,18 +100,13 @@ impl Ingest {
                     batch.push((now_ns(), Event::Object(update)));
                 }
                 let applied = match input {
-                    Ok(ObjectInput::Upsert(o)) if world.would_exceed(&o.name, max_objects) => {
+                    Ok(ObjectChange::Upsert(o)) if world.would_exceed(&o.name, max_objects) => {
                         Err(Rejection::TooManyObjects {
                             id: o.name,
                             limit: max_objects,
                         })
                     }
-                    Ok(ObjectInput::Upsert(o)) => {
-                        world.upsert_object(o);
-                        Ok(())
-                    }
-                    Ok(ObjectInput::Remove(id)) if world.remove_object(&id) => Ok(()),
-                    Ok(ObjectInput::Remove(id)) => Err(Rejection::UnknownObject(id)),
+                    Ok(change) => world.apply(&self.robot, change).map_err(Rejection::from),
                     Err(why) => Err(why),
                 };
                 match applied {
@@ -169,6 +164,7 @@ impl Ingest {
                     st.map.memory_bytes = snap.map.memory_bytes() as u64;
                     st.world.objects = snap.scene.objects.len() as u64;
                     st.world.spark_pairs = snap.pairs.len() as u64;
+                    st.world.attached = snap.scene.attached.len() as u64;
                 }
                 let snap = Arc::new(snap);
                 // The inputs are recorded under the snapshot lock, as a plan request is when it

@@ -64,7 +64,10 @@ impl Stats {
     /// Counts a refused input, and logs why.
     pub fn rejected(&self, why: &Rejection) {
         tracing::warn!("rejected input: {why}");
-        self.inner.lock().expect("stats lock").inputs.rejected += 1;
+        let inputs = &mut self.inner.lock().expect("stats lock").inputs;
+        inputs.rejected += 1;
+        inputs.last_rejection = why.to_string();
+        inputs.last_rejection_status = why.status() as u32;
     }
 }
 

@@ -1,24 +1,17 @@
-//! The object service: object updates (add, move, remove) from clients, decoded into world
-//! objects.
+//! The object service: object updates (add, move, remove, attach, detach) from clients,
+//! decoded into world changes.
 
 use super::drops::Gaps;
 use super::rejection::Rejection;
 use ember_engine::collision::Shape;
 use ember_engine::scene::pose_from_xyz_xyzw;
+use ember_engine::world::model::ObjectChange;
 use ember_engine::world::Object;
 use ember_sdk::client::now_ns;
 use ember_sdk::services::{self, Limits, Open};
 use ember_sdk::wire::{self, ShapeKind, PROTOCOL_VERSION};
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
-
-/// A decoded object update.
-pub enum ObjectInput {
-    /// Add or move this object.
-    Upsert(Object),
-    /// Remove the object of this name.
-    Remove(String),
-}
 
 /// The object updates port.
 pub struct ObjectsPort(Subscriber<ipc::Service, wire::ObjectUpdate, ()>);
@@ -41,7 +34,7 @@ impl ObjectsPort {
         &self,
         max_extent: f64,
         gaps: &mut Gaps,
-    ) -> Option<(u64, wire::ObjectUpdate, Result<ObjectInput, Rejection>)> {
+    ) -> Option<(u64, wire::ObjectUpdate, Result<ObjectChange, Rejection>)> {
         let s = self.0.receive().ok().flatten()?;
         let u = *s.payload();
         let dropped = gaps.saw(s.header().publisher_id().value(), u.seq);
@@ -49,27 +42,30 @@ impl ObjectsPort {
     }
 }
 
-/// Decodes an update; an object larger than `max_extent` or centred farther than it from the
-/// base is refused.
-pub fn decode(u: &wire::ObjectUpdate, max_extent: f64) -> Result<ObjectInput, Rejection> {
+/// Decodes an update; an object larger than `max_extent`, or a world object centred farther
+/// than it from the base, is refused.
+pub fn decode(u: &wire::ObjectUpdate, max_extent: f64) -> Result<ObjectChange, Rejection> {
     Rejection::check_version("object update", u.version)?;
-    Ok(match object_of(u)? {
-        Some(o) => {
-            let far = o.pose.translation.vector.norm();
-            if u.dims.iter().any(|d| d.abs() > max_extent) || far > max_extent {
-                return Err(Rejection::ObjectExtent {
-                    id: o.name,
-                    limit: max_extent,
-                });
-            }
-            ObjectInput::Upsert(o)
-        }
-        None => ObjectInput::Remove(wire::name_str(&u.id)),
-    })
+    let change = change_of(u)?;
+    let (id, shape, pose) = match &change {
+        ObjectChange::Upsert(o) => (&o.name, Some(o.shape), Some(&o.pose)),
+        ObjectChange::Attach { id, shape, .. } => (id, *shape, None),
+        ObjectChange::Detach { id, pose } => (id, None, Some(pose)),
+        ObjectChange::Remove(_) => return Ok(change),
+    };
+    let far = pose.map_or(0.0, |p| p.translation.vector.norm());
+    let large = shape.is_some() && u.dims.iter().any(|d| d.abs() > max_extent);
+    if large || far > max_extent {
+        return Err(Rejection::ObjectExtent {
+            id: id.clone(),
+            limit: max_extent,
+        });
+    }
+    Ok(change)
 }
 
-/// The object an update adds or moves (None: a removal), or why it is refused.
-pub fn object_of(u: &wire::ObjectUpdate) -> Result<Option<Object>, Rejection> {
+/// The world change an update asks for, or why it is refused (limits aside).
+pub fn change_of(u: &wire::ObjectUpdate) -> Result<ObjectChange, Rejection> {
     let id = wire::name_str(&u.id);
     if id.is_empty() {
         return Err(Rejection::ObjectWithoutId);
@@ -79,30 +75,41 @@ pub fn object_of(u: &wire::ObjectUpdate) -> Result<Option<Object>, Rejection> {
     }
     let d = u.dims;
     let shape = match u.shape {
-        s if s == ShapeKind::Remove as u32 => return Ok(None),
-        s if s == ShapeKind::Box as u32 => Shape::cuboid(d),
-        s if s == ShapeKind::Cylinder as u32 => Shape::Cylinder {
+        s if s == ShapeKind::Remove as u32 => return Ok(ObjectChange::Remove(id)),
+        s if s == ShapeKind::Tracked as u32 => None,
+        s if s == ShapeKind::Box as u32 => Some(Shape::cuboid(d)),
+        s if s == ShapeKind::Cylinder as u32 => Some(Shape::Cylinder {
             radius: d[0],
             half_length: d[1] / 2.0,
-        },
-        s if s == ShapeKind::Sphere as u32 => Shape::Sphere { radius: d[0] },
-        s if s == ShapeKind::Capsule as u32 => Shape::Capsule {
+        }),
+        s if s == ShapeKind::Sphere as u32 => Some(Shape::Sphere { radius: d[0] }),
+        s if s == ShapeKind::Capsule as u32 => Some(Shape::Capsule {
             radius: d[0],
             half_length: d[1] / 2.0,
-        },
+        }),
         code => return Err(Rejection::UnknownShape { id, code }),
     };
-    if !shape.is_valid() {
+    if shape.is_some_and(|s| !s.is_valid()) {
         return Err(Rejection::ObjectDimensions { id, dims: d });
     }
     let p = u.pose;
     let pose = pose_from_xyz_xyzw([p[0], p[1], p[2]], [p[3], p[4], p[5], p[6]])
         .ok_or_else(|| Rejection::ObjectQuaternion(id.clone()))?;
-    Ok(Some(Object {
-        name: id,
-        shape,
-        pose,
-    }))
+    let link = wire::name_str(&u.link);
+    Ok(match (link.is_empty(), shape) {
+        (true, Some(shape)) => ObjectChange::Upsert(Object {
+            name: id,
+            shape,
+            pose,
+        }),
+        (true, None) => ObjectChange::Detach { id, pose },
+        (false, shape) => ObjectChange::Attach {
+            link,
+            id,
+            shape,
+            grasp: pose,
+        },
+    })
 }
 
 /// The wire update that adds or moves `object` (the inverse of [`object_of`]).
@@ -128,6 +135,7 @@ pub fn update_of(object: &Object) -> wire::ObjectUpdate {
         dims,
         pose: [t[0], t[1], t[2], q[0], q[1], q[2], q[3]],
         seq: 0,
+        link: [0; 32],
     }
 }
 
@@ -156,7 +164,9 @@ mod tests {
                 shape,
                 pose,
             };
-            let back = object_of(&update_of(&o)).unwrap().unwrap();
+            let ObjectChange::Upsert(back) = change_of(&update_of(&o)).unwrap() else {
+                panic!("a world object's update is an upsert");
+            };
             assert_eq!((back.name.as_str(), back.shape), ("thing", shape));
             assert!((back.pose.translation.vector - pose.translation.vector).norm() < 1e-12);
             assert!(back.pose.rotation.angle_to(&pose.rotation) < 1e-9);

@@ -2,6 +2,7 @@
 //! status code a plan reply carries and the message logs and replies show.
 
 use ember_engine::robot::ConfigError;
+use ember_engine::world::model::ChangeError;
 use ember_sdk::wire::PROTOCOL_VERSION;
 use ember_sdk::Status;
 use thiserror::Error;
@@ -123,9 +124,9 @@ pub enum Rejection {
     /// An object pose whose quaternion is zero.
     #[error("object '{0}': zero quaternion")]
     ObjectQuaternion(String),
-    /// Removal of an object the world does not hold.
-    #[error("removal of unknown object '{0}'")]
-    UnknownObject(String),
+    /// An object change the world refused (unknown object or link, attach twice, ...).
+    #[error(transparent)]
+    Change(#[from] ChangeError),
     /// A cloud whose header and payload disagree, or an empty one.
     #[error("cloud header says {header} points, payload holds {payload}")]
     PointCount {
@@ -175,6 +176,13 @@ impl Rejection {
             Rejection::Version { .. } => Status::VersionMismatch,
             Rejection::WrongDof { .. } => Status::WrongDof,
             Rejection::NotFinite => Status::NotFinite,
+            Rejection::Change(c) => match c {
+                ChangeError::UnknownObject(_) => Status::UnknownObject,
+                ChangeError::UnknownLink(_) => Status::UnknownLink,
+                ChangeError::AlreadyAttached(_) => Status::AlreadyAttached,
+                ChangeError::NotAttached(_) => Status::NotAttached,
+                ChangeError::AttachCollides { .. } => Status::AttachCollides,
+            },
             _ => Status::BadRequest,
         }
     }

@@ -3,7 +3,7 @@
 
 use crate::daemon::{goal_near_can, publish_table, wait_for, Daemon, FREE_GOAL, TUCK};
 use ember_sdk::recording;
-use ember_sdk::wire::{Method, Point};
+use ember_sdk::wire::{Method, Point, ShapeKind};
 use ember_sdk::{PlanCall, Status};
 use std::collections::BTreeMap;
 use std::time::Duration;
@@ -641,4 +641,124 @@ fn the_fixture_session_reads_in_process() {
         points > 50_000,
         "two 320x240 views of the table: {points} points"
     );
+}
+
+/// A rod held at the tip that makes `goal` collide while the bare robot reaches it, free at
+/// `start` (both checked exactly and with spheres): the grasp pose and the rod's size.
+fn rod_that_blocks(start: &[f64], goal: &[f64]) -> (ember_engine::Pose, [f64; 3]) {
+    use ember_engine::collision::{exact::ExactChecker, Shape, SphereChecker};
+    use ember_engine::Pose;
+    let robot = ember_engine::robot::Robot::builtin("fetch").unwrap();
+    let env = crate::daemon::table_scene().environment().unwrap();
+    let free = |r: &ember_engine::robot::Robot, q: &[f64]| {
+        ExactChecker::new(r, &env).is_valid(q) && SphereChecker::new(r, &env).is_valid(q)
+    };
+    assert!(free(&robot, start) && free(&robot, goal));
+    let size = [0.02, 0.02, 0.5];
+    for grasp in [
+        Pose::translation(0.1, 0.0, 0.0),
+        Pose::translation(0.1, 0.0, 0.25),
+        Pose::translation(0.1, 0.0, -0.25),
+        Pose::translation(0.35, 0.0, 0.0)
+            * Pose::rotation(nalgebra::Vector3::y() * std::f64::consts::FRAC_PI_2),
+    ] {
+        let holding = robot.with_attached(robot.tip(), "rod", Shape::cuboid(size), grasp);
+        let mut exact = ExactChecker::new(&holding, &env);
+        if free(&holding, start) && !exact.is_valid(goal) {
+            return (grasp, size);
+        }
+    }
+    panic!("no rod grasp blocks the goal");
+}
+
+#[test]
+fn attachments_change_plans_refusals_say_why_and_sessions_replay() {
+    let a = Daemon::start("att-a");
+    let client = a.client();
+    publish_table(&client);
+    client.publish_joints(&FREE_GOAL).unwrap();
+    wait_for(&client, "the table", |s| {
+        s.world_objects == 3 && s.joint_states == 1
+    });
+    let goal = goal_near_can();
+    let (grasp, size) = rod_that_blocks(&FREE_GOAL, &goal);
+    let (t, q) = ember_engine::scene::pose_to_xyz_xyzw(&grasp);
+    let grasp = [t[0], t[1], t[2], q[0], q[1], q[2], q[3]];
+    let tip = {
+        let robot = ember_engine::robot::Robot::builtin("fetch").unwrap();
+        robot.links()[robot.tip()].name.clone()
+    };
+    let call = PlanCall {
+        start: FREE_GOAL.to_vec(),
+        ..crate::daemon::uniform_call(goal.clone(), 3)
+    };
+    let plan = |c: &PlanCall| client.plan(c, Duration::from_secs(20)).unwrap().status;
+    assert_eq!(plan(&call), Status::Ok, "the bare robot reaches the goal");
+
+    client
+        .attach_shape("rod", &tip, ShapeKind::Box, size, grasp)
+        .unwrap();
+    let s = wait_for(&client, "the attach", |s| s.world_attached == 1);
+    assert_eq!(s.world_objects, 3);
+    assert_eq!(plan(&call), Status::GoalInCollision, "the rod blocks it");
+
+    // Each refused change names its reason; the world stays as it was.
+    let slab = [0.9, 0.9, 0.9];
+    let refusals: [(&dyn Fn(), Status); 5] = [
+        (
+            &|| client.attach("rod", &tip, grasp).unwrap(),
+            Status::AlreadyAttached,
+        ),
+        (
+            &|| client.attach("table_top", "no_such_link", grasp).unwrap(),
+            Status::UnknownLink,
+        ),
+        (
+            &|| client.attach("ghost", &tip, grasp).unwrap(),
+            Status::UnknownObject,
+        ),
+        (
+            &|| client.detach("ghost", grasp).unwrap(),
+            Status::NotAttached,
+        ),
+        (
+            &|| {
+                client
+                    .attach_shape("slab", &tip, ShapeKind::Box, slab, grasp)
+                    .unwrap()
+            },
+            Status::AttachCollides,
+        ),
+    ];
+    for (send, status) in refusals {
+        let before = client.status(Duration::from_secs(2)).unwrap();
+        send();
+        let s = wait_for(&client, "the refusal", |s| {
+            s.rejected == before.rejected + 1
+        });
+        assert_eq!(s.last_rejection_status, status as u32, "{s:?}");
+        let why = ember_sdk::wire::name_str(&s.last_rejection);
+        assert!(!why.is_empty(), "{status:?}");
+        assert_eq!((s.world_objects, s.world_attached), (3, 1), "{why}");
+    }
+
+    // Put down out of the way, the rod is a world object and the goal is reachable again.
+    client
+        .detach("rod", [2.5, 1.5, 0.3, 0.0, 0.0, 0.0, 1.0])
+        .unwrap();
+    wait_for(&client, "the detach", |s| {
+        s.world_attached == 0 && s.world_objects == 4
+    });
+    assert_eq!(plan(&call), Status::Ok);
+    wait_for(&client, "the recorder", |s| s.recorded >= 14);
+    drop(client);
+    a.signal("-TERM");
+    let mut a = a;
+    assert!(a.child.wait().unwrap().success());
+
+    // Replayed into a fresh daemon: the same world after each change, the same three answers.
+    let b = Daemon::start("att-b");
+    crate::daemon::replay_check(&a.recording, &b, 3);
+    let s = b.client().status(Duration::from_secs(2)).unwrap();
+    assert_eq!((s.world_objects, s.world_attached, s.rejected), (4, 0, 5));
 }

@@ -149,6 +149,9 @@ pub struct Robot {
     pub(crate) origin_frames: Vec<fk::Frame>,
 }
 
+/// How far the spheres of a held object may stand proud of it, at least (metres).
+const HELD_PROTRUSION: f64 = 0.02;
+
 impl Robot {
     /// Robot name.
     pub fn name(&self) -> &str {
@@ -312,8 +315,9 @@ impl Robot {
 
     /// A copy of this robot holding `shape` rigidly at `origin` in the frame of link `parent`
     /// (an object in the gripper). The object becomes a fixed link named `name`: it is checked
-    /// against the environment, and against every link with geometry outside `parent`'s rigid
-    /// body for self-collision (the hand that holds it may touch it).
+    /// against the environment, and against every link with geometry outside the hand that
+    /// holds it for self-collision. The hand is `parent`'s rigid body and the links jointed
+    /// directly to it (the fingers), as MoveIt's touch links for an end effector.
     pub fn with_attached(&self, parent: usize, name: &str, shape: Shape, origin: Pose) -> Robot {
         let mut robot = self.clone();
         let index = robot.links.len();
@@ -329,14 +333,22 @@ impl Robot {
             joint: String::new(),
         });
         robot.origin_frames.push(fk::Frame::identity());
+        // Held objects are fitted as they are attached, on the world's thread: a coarser fit
+        // than the robot's links (tens of ms for a can, a few hundred for a 30 cm box;
+        // memoised per shape), coarser still for large objects.
+        let protrusion = HELD_PROTRUSION.max(shape.bounding_radius() * 0.1);
         robot.spheres.push_link(
             index,
             &robot.links[index],
-            spheres::DEFAULT_PROTRUSION,
+            protrusion,
             &spheres::cache::SphereCache::Off,
         );
         robot.exact = Arc::new(ExactModel::build(&robot.links));
-        let touching = robot.rigid_body(index);
+        let mut touching = robot.rigid_body(index);
+        let fingers: Vec<usize> = (0..index)
+            .filter(|&i| robot.links[i].parent.is_some_and(|p| touching.contains(&p)))
+            .collect();
+        touching.extend(fingers);
         for (i, l) in robot.links.iter().enumerate() {
             if !l.collision.is_empty() && !touching.contains(&i) {
                 robot.self_pairs.push((i, index));

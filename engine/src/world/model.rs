@@ -1,16 +1,77 @@
-//! The world model: objects, the occupancy map and their decompositions (SPARK pairs, FLAME
-//! octoboxes), kept up to date one input at a time, and the immutable snapshots planning works
-//! on. The daemon's ingest thread owns one; `ember train` rebuilds one from a recording.
+//! The world model: objects, what the robot holds, the occupancy map and their decompositions
+//! (SPARK pairs, FLAME octoboxes), kept up to date one input at a time, and the immutable
+//! snapshots planning works on. The daemon's ingest thread owns one; `ember train` rebuilds one
+//! from a recording.
 
 use super::map::{BlockKey, CloudMask, InsertReport, MapParams, OccupancyMap};
 use super::{Environment, Object};
+use crate::collision::checker::Contact;
+use crate::collision::exact::ExactChecker;
+use crate::collision::Shape;
 use crate::experience::flame::{octoboxes, Octobox};
 use crate::experience::spark::{PairSet, PairsSnapshot};
 use crate::experience::ExperienceParams;
 use crate::robot::spheres::PlacedSpheres;
 use crate::robot::Robot;
-use crate::scene::Scene;
+use crate::scene::{AttachedObject, Scene};
+use crate::Pose;
 use std::sync::Arc;
+use thiserror::Error;
+
+/// One change to the objects of a world, as motion capture or a client reports it.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ObjectChange {
+    /// Add or move a world object.
+    Upsert(Object),
+    /// Remove an object, from the world or from the robot's hand.
+    Remove(String),
+    /// The robot now holds object `id` on `link`, posed at `grasp` in the link's frame:
+    /// `shape` given, or (None) the shape of the tracked object of that name, which leaves the
+    /// world.
+    Attach {
+        /// The robot link holding it.
+        link: String,
+        /// Object name.
+        id: String,
+        /// Its shape; None: the tracked object's.
+        shape: Option<Shape>,
+        /// Its pose in the link's frame.
+        grasp: Pose,
+    },
+    /// The robot lets go of `id`: it becomes a world object at `pose` (base frame).
+    Detach {
+        /// Object name.
+        id: String,
+        /// Where it now stands.
+        pose: Pose,
+    },
+}
+
+/// Why a change was refused; the world is left as it was.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum ChangeError {
+    /// No object of this name, in the world or held.
+    #[error("unknown object '{0}'")]
+    UnknownObject(String),
+    /// The robot has no link of this name.
+    #[error("attach to unknown link '{0}'")]
+    UnknownLink(String),
+    /// The robot already holds an object of this name.
+    #[error("object '{0}' is already attached")]
+    AlreadyAttached(String),
+    /// Detach of an object the robot does not hold.
+    #[error("detach of '{0}', which is not attached")]
+    NotAttached(String),
+    /// Held at the latest joint state, the object would touch the robot (outside the link
+    /// holding it).
+    #[error("attached object '{object}' would touch link '{link}' at the current joint state")]
+    AttachCollides {
+        /// Object name.
+        object: String,
+        /// The link it touches.
+        link: String,
+    },
+}
 
 /// How a world is kept.
 #[derive(Debug, Clone)]
@@ -42,6 +103,15 @@ pub struct Snapshot {
     pub env: Environment,
     /// Counts object changes: equal versions, equal objects.
     pub objects_version: u64,
+    /// The robot with what it holds (`scene.attached`); None: it holds nothing.
+    pub holding: Option<Arc<Robot>>,
+}
+
+impl Snapshot {
+    /// The robot as planning sees it in this snapshot: `robot` with what it holds.
+    pub fn robot<'r>(&'r self, robot: &'r Robot) -> &'r Robot {
+        self.holding.as_deref().unwrap_or(robot)
+    }
 }
 
 /// The mutable world (owned by the ingest thread).
@@ -57,10 +127,64 @@ pub struct World {
     /// Per carved object: the blocks its voxels fill, with their masks.
     object_blocks: rustc_hash::FxHashMap<String, Vec<Octobox>>,
     joints: Option<Vec<f64>>,
+    /// The robot with the attached objects (None: it holds nothing).
+    holding: Option<Arc<Robot>>,
     use_map: bool,
     padding: f64,
     carve: Option<f64>,
     objects_version: u64,
+}
+
+/// Objects larger than this many voxels (within the map's bounds) are voxelised by whole
+/// blocks: a client's 10 m box costs the ingest thread milliseconds, not seconds.
+const VOXELISE_MAX: i64 = 1 << 20;
+
+/// The octoboxes of the one object in `alone` (its box `[lo, hi]`) in `map`'s grid: the voxels
+/// whose centre ball touches it, within the map's bounds; whole blocks touched by the block's
+/// ball past [`VOXELISE_MAX`] voxels.
+fn voxelise(map: &OccupancyMap, alone: &Environment, lo: [f64; 3], hi: [f64; 3]) -> Vec<Octobox> {
+    let (mut lo, mut hi) = (lo, hi);
+    if let Some((blo, bhi)) = map.params().bounds {
+        for i in 0..3 {
+            lo[i] = lo[i].max(blo[i]);
+            hi[i] = hi[i].min(bhi[i]);
+        }
+    }
+    if (0..3).any(|i| lo[i] > hi[i]) {
+        return Vec::new();
+    }
+    let (klo, khi) = (map.key_of(lo), map.key_of(hi));
+    let voxels: i64 = (0..3).map(|i| (khi[i] - klo[i] + 1) as i64).product();
+    let mut blocks: rustc_hash::FxHashMap<BlockKey, u64> = Default::default();
+    if voxels <= VOXELISE_MAX {
+        let half = map.resolution() / 2.0;
+        for x in klo[0]..=khi[0] {
+            for y in klo[1]..=khi[1] {
+                for z in klo[2]..=khi[2] {
+                    if alone.sphere_collides(map.voxel_center([x, y, z]), half) {
+                        let (b, bit) = OccupancyMap::split([x, y, z]);
+                        *blocks.entry(b).or_default() |= 1 << bit;
+                    }
+                }
+            }
+        }
+    } else {
+        let (blo, bhi) = (klo.map(|v| v >> 2), khi.map(|v| v >> 2));
+        let reach = map.block_size() * 3f64.sqrt() / 2.0;
+        for x in blo[0]..=bhi[0] {
+            for y in blo[1]..=bhi[1] {
+                for z in blo[2]..=bhi[2] {
+                    if alone.sphere_collides(map.block_center([x, y, z]), reach) {
+                        blocks.insert([x, y, z], u64::MAX);
+                    }
+                }
+            }
+        }
+    }
+    blocks
+        .into_iter()
+        .map(|(key, mask)| Octobox { key, mask })
+        .collect()
 }
 
 impl World {
@@ -75,6 +199,7 @@ impl World {
             octoboxes: Arc::default(),
             object_blocks: Default::default(),
             joints: None,
+            holding: None,
             use_map: params.use_map,
             padding: params.self_filter_padding,
             carve: params.carve_padding,
@@ -111,9 +236,129 @@ impl World {
         self.scene.objects.len() >= max && !self.scene.objects.iter().any(|o| o.name == name)
     }
 
-    /// Removes an object and its pairs; false when unknown.
+    /// Applies one object change for `robot` (the robot without what it holds); a refused
+    /// change leaves the world as it was.
+    pub fn apply(&mut self, robot: &Robot, change: ObjectChange) -> Result<(), ChangeError> {
+        match change {
+            ObjectChange::Upsert(object) => {
+                if self.held(&object.name).is_some() {
+                    // A tracked object the robot holds is moved by the robot, not by reports.
+                    return Err(ChangeError::AlreadyAttached(object.name));
+                }
+                self.upsert_object(object);
+            }
+            ObjectChange::Remove(id) => {
+                if !self.remove_object(&id) && !self.release(robot, &id) {
+                    return Err(ChangeError::UnknownObject(id));
+                }
+            }
+            ObjectChange::Attach {
+                link,
+                id,
+                shape,
+                grasp,
+            } => self.attach(robot, link, id, shape, grasp)?,
+            ObjectChange::Detach { id, pose } => {
+                let Some(i) = self.held(&id) else {
+                    return Err(ChangeError::NotAttached(id));
+                };
+                let shape = self.scene.attached[i].object.shape;
+                self.release(robot, &id);
+                self.upsert_object(Object {
+                    name: id,
+                    shape,
+                    pose,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Where `id` is in `scene.attached`, when held.
+    fn held(&self, id: &str) -> Option<usize> {
+        self.scene.attached.iter().position(|a| a.object.name == id)
+    }
+
+    /// Attaches (see [`ObjectChange::Attach`]), refusing what would touch the robot at once.
+    fn attach(
+        &mut self,
+        robot: &Robot,
+        link: String,
+        id: String,
+        shape: Option<Shape>,
+        grasp: Pose,
+    ) -> Result<(), ChangeError> {
+        if self.held(&id).is_some() {
+            return Err(ChangeError::AlreadyAttached(id));
+        }
+        if robot.link_index(&link).is_none() {
+            return Err(ChangeError::UnknownLink(link));
+        }
+        let shape = match shape {
+            Some(s) => s,
+            None => match self.env.object(&id) {
+                Some(o) => o.shape,
+                None => return Err(ChangeError::UnknownObject(id)),
+            },
+        };
+        let mut scene = Scene {
+            attached: self.scene.attached.clone(),
+            ..Scene::default()
+        };
+        scene.attached.push(AttachedObject {
+            link,
+            object: Object {
+                name: id.clone(),
+                shape,
+                pose: grasp,
+            },
+        });
+        let holding = scene
+            .robot(robot)
+            .expect("the link was checked")
+            .into_owned();
+        if let Some(q) = self.joints.as_ref().filter(|q| robot.validate(q).is_ok()) {
+            let nothing = Environment::new();
+            let touches = |r: &Robot| match ExactChecker::new(r, &nothing).contact(q) {
+                Some(Contact::SelfCollision { link_a, link_b }) => Some((link_a, link_b)),
+                _ => None,
+            };
+            if let Some((a, b)) = touches(&holding).filter(|c| touches(robot) != Some(c.clone())) {
+                let link = if a == id { b } else { a };
+                return Err(ChangeError::AttachCollides { object: id, link });
+            }
+        }
+        self.remove_object(&id);
+        self.objects_version += 1;
+        self.scene.attached = scene.attached;
+        self.holding = Some(Arc::new(holding));
+        Ok(())
+    }
+
+    /// Drops the held object `id` (false when not held).
+    fn release(&mut self, robot: &Robot, id: &str) -> bool {
+        let Some(i) = self.held(id) else {
+            return false;
+        };
+        self.objects_version += 1;
+        self.scene.attached.remove(i);
+        self.holding = match self.scene.attached.is_empty() {
+            true => None,
+            false => Some(Arc::new(
+                self.scene
+                    .robot(robot)
+                    .expect("links were checked on attach")
+                    .into_owned(),
+            )),
+        };
+        true
+    }
+
+    /// Removes a world object and its pairs; false when unknown.
     pub fn remove_object(&mut self, name: &str) -> bool {
-        let before = self.scene.objects.len();
+        if !self.scene.objects.iter().any(|o| o.name == name) {
+            return false;
+        }
         self.objects_version += 1;
         self.scene.objects.retain(|o| o.name != name);
         self.pairs.remove(name);
@@ -121,7 +366,7 @@ impl World {
         if self.object_blocks.remove(name).is_some() {
             self.merge_octoboxes();
         }
-        self.scene.objects.len() != before
+        true
     }
 
     /// Sets the joint state.
@@ -137,6 +382,8 @@ impl World {
         points: &[[f32; 3]],
         sensor_pose: &crate::Pose,
     ) -> InsertReport {
+        // What the robot holds is part of it here: the self-filter drops its points too.
+        let robot = self.holding.as_deref().unwrap_or(robot);
         let filter = self
             .joints
             .as_ref()
@@ -168,24 +415,7 @@ impl World {
             map.clear_occupied(lo, hi, inside);
             self.map_octoboxes = Arc::new(octoboxes(map));
         }
-        // The object's own voxels (centres inside it), block by block.
-        let map = &self.map;
-        let (klo, khi) = (map.key_of(placed.lo), map.key_of(placed.hi));
-        let mut blocks: rustc_hash::FxHashMap<BlockKey, u64> = Default::default();
-        for x in klo[0]..=khi[0] {
-            for y in klo[1]..=khi[1] {
-                for z in klo[2]..=khi[2] {
-                    if alone.sphere_collides(map.voxel_center([x, y, z]), half) {
-                        let (b, bit) = OccupancyMap::split([x, y, z]);
-                        *blocks.entry(b).or_default() |= 1 << bit;
-                    }
-                }
-            }
-        }
-        let blocks = blocks
-            .into_iter()
-            .map(|(key, mask)| Octobox { key, mask })
-            .collect();
+        let blocks = voxelise(&self.map, &alone, placed.lo, placed.hi);
         self.object_blocks.insert(object.name.clone(), blocks);
         self.merge_octoboxes();
     }
@@ -225,6 +455,7 @@ impl World {
             octoboxes: self.octoboxes.clone(),
             env,
             objects_version: self.objects_version,
+            holding: self.holding.clone(),
         }
     }
 }

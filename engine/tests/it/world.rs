@@ -1,9 +1,10 @@
-//! The world model: tracked objects carved out of the map, cleared at once, voxelised for FLAME.
+//! The world model: tracked objects carved out of the map, cleared at once, voxelised for FLAME;
+//! objects the robot holds.
 
 use ember_engine::collision::Shape;
 use ember_engine::robot::Robot;
 use ember_engine::world::map::{MapParams, Occupancy};
-use ember_engine::world::model::{World, WorldParams};
+use ember_engine::world::model::{ChangeError, ObjectChange, World, WorldParams};
 use ember_engine::world::Object;
 use ember_engine::Pose;
 
@@ -100,4 +101,123 @@ fn voxels_an_object_comes_to_fill_are_cleared_at_once() {
     assert!(keys.contains(&new) && !keys.contains(&old), "{keys:?}");
     sut.remove_object("crate");
     assert!(sut.snapshot().octoboxes.is_empty());
+}
+
+#[test]
+fn attaching_moves_an_object_into_the_hand_and_refusals_change_nothing() {
+    let robot = Robot::builtin("fetch").unwrap();
+    let tip = robot.links()[robot.tip()].name.clone();
+    let q = robot.middle();
+    let mut sut = world(Some(0.02));
+    sut.set_joints(q.clone());
+    let can = Object {
+        name: "can".into(),
+        shape: Shape::Cylinder {
+            radius: 0.03,
+            half_length: 0.06,
+        },
+        pose: Pose::translation(1.0, 0.3, 0.8),
+    };
+    sut.apply(&robot, ObjectChange::Upsert(can.clone()))
+        .unwrap();
+    let grasp = Pose::translation(0.15, 0.0, 0.0);
+    let attach = |id: &str, link: &str, shape: Option<Shape>| ObjectChange::Attach {
+        link: link.into(),
+        id: id.into(),
+        shape,
+        grasp,
+    };
+    sut.apply(&robot, attach("can", &tip, None)).unwrap();
+    let held = sut.snapshot();
+    assert!(held.scene.objects.is_empty(), "the can left the world");
+    assert_eq!(held.scene.attached.len(), 1);
+    assert_eq!(held.scene.attached[0].object.shape, can.shape);
+    let holding = held.robot(&robot);
+    assert_eq!(holding.links().len(), robot.links().len() + 1);
+
+    // The held can is part of the robot for the self-filter: points on it mark nothing.
+    let mut poses = vec![Pose::identity(); robot.links().len()];
+    robot.forward_kinematics(&q, &mut poses);
+    let centre = (poses[robot.tip()] * grasp).translation.vector;
+    let on_can: Vec<[f32; 3]> = (0..50)
+        .map(|i| {
+            let a = i as f64 * 0.125;
+            let p = centre + nalgebra::Vector3::new(0.03 * a.cos(), 0.03 * a.sin(), 0.0);
+            [p.x as f32, p.y as f32, p.z as f32]
+        })
+        .collect();
+    let report = sut.insert_cloud(&robot, &on_can, &Pose::identity());
+    assert_eq!(report.filtered, 50, "{report:?}");
+
+    // Each refusal is typed and leaves the world as it was.
+    let big = Shape::cuboid([0.8, 0.8, 0.8]);
+    for (change, expected) in [
+        (
+            attach("can", "no_such_link", None),
+            ChangeError::AlreadyAttached("can".into()),
+        ),
+        (
+            attach("cup", "no_such_link", None),
+            ChangeError::UnknownLink("no_such_link".into()),
+        ),
+        (
+            attach("ghost", &tip, None),
+            ChangeError::UnknownObject("ghost".into()),
+        ),
+        (
+            ObjectChange::Upsert(can.clone()),
+            ChangeError::AlreadyAttached("can".into()),
+        ),
+        (
+            ObjectChange::Detach {
+                id: "ghost".into(),
+                pose: Pose::identity(),
+            },
+            ChangeError::NotAttached("ghost".into()),
+        ),
+        (
+            ObjectChange::Remove("ghost".into()),
+            ChangeError::UnknownObject("ghost".into()),
+        ),
+    ] {
+        let before = sut.snapshot();
+        assert_eq!(sut.apply(&robot, change), Err(expected));
+        let after = sut.snapshot();
+        assert_eq!(after.scene, before.scene);
+        assert_eq!(after.objects_version, before.objects_version);
+    }
+    // A box too large to hold: it would reach back into the arm.
+    match sut.apply(&robot, attach("slab", &tip, Some(big))) {
+        Err(ChangeError::AttachCollides { object, link }) => {
+            assert_eq!(object, "slab");
+            assert!(robot.link_index(&link).is_some(), "{link}");
+        }
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(sut.snapshot().scene.attached.len(), 1);
+
+    // Detached, the can is a world object again where it was put down; removed, it is gone.
+    let down = Pose::translation(0.9, -0.2, 0.75);
+    sut.apply(
+        &robot,
+        ObjectChange::Detach {
+            id: "can".into(),
+            pose: down,
+        },
+    )
+    .unwrap();
+    let snap = sut.snapshot();
+    assert!(snap.scene.attached.is_empty() && snap.holding.is_none());
+    assert_eq!(
+        snap.scene.objects,
+        vec![Object {
+            pose: down,
+            ..can.clone()
+        }]
+    );
+    sut.apply(&robot, attach("can", &tip, None)).unwrap();
+    sut.apply(&robot, ObjectChange::Remove("can".into()))
+        .unwrap();
+    let snap = sut.snapshot();
+    assert!(snap.scene.objects.is_empty() && snap.scene.attached.is_empty());
 }

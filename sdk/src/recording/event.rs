@@ -103,6 +103,7 @@ impl From<&wire::ObjectUpdate> for ObjectUpdate {
             shape: u.shape,
             dims: u.dims,
             pose: Pose::from_wire(u.pose),
+            link: wire::name_str(&u.link),
         }
     }
 }
@@ -117,6 +118,7 @@ impl From<&ObjectUpdate> for wire::ObjectUpdate {
             dims: o.dims,
             pose: o.pose.to_wire(),
             seq: 0,
+            link: wire::name(&o.link),
         }
     }
 }

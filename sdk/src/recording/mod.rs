@@ -94,7 +94,7 @@ pub fn schemas() -> Vec<(&'static str, String)> {
         (
             "ember_msgs/msg/ObjectUpdate",
             with_deps(
-                "# shape: 0 remove, 1 box (dims = size), 2 cylinder (radius, length), 3 sphere (radius), 4 capsule (radius, length)\nstd_msgs/Header header\nstring id\nuint32 shape\nfloat64[3] dims\ngeometry_msgs/Pose pose\n",
+                "# shape: 0 remove, 1 box (dims = size), 2 cylinder (radius, length), 3 sphere (radius), 4 capsule (radius, length), 5 the tracked shape\n# link: the robot link holding the object (attach; pose in its frame), empty: a world object in the base frame (detach when shape is 5)\nstd_msgs/Header header\nstring id\nuint32 shape\nfloat64[3] dims\ngeometry_msgs/Pose pose\nstring link\n",
                 &[HEADER, TIME, POSE, POINT, QUAT],
             ),
         ),
@@ -280,6 +280,36 @@ pub struct ObjectUpdate {
     pub shape: u32,
     pub dims: [f64; 3],
     pub pose: Pose,
+    pub link: String,
+}
+
+/// `ember_msgs/msg/ObjectUpdate` as protocol versions 1 and 2 recorded it (no `link`).
+#[derive(Deserialize)]
+struct ObjectUpdateV2 {
+    header: Header,
+    id: String,
+    shape: u32,
+    dims: [f64; 3],
+    pose: Pose,
+}
+
+impl ObjectUpdate {
+    /// Decodes a recorded update whose channel carries `schema` (ros2msg text); files written
+    /// before attachments (no `link`) hold world objects only.
+    pub fn decode(data: &[u8], schema: &[u8]) -> Result<ObjectUpdate, String> {
+        if String::from_utf8_lossy(schema).contains("string link") {
+            return decode(data);
+        }
+        let o: ObjectUpdateV2 = decode(data)?;
+        Ok(ObjectUpdate {
+            header: o.header,
+            id: o.id,
+            shape: o.shape,
+            dims: o.dims,
+            pose: o.pose,
+            link: String::new(),
+        })
+    }
 }
 
 /// `ember_msgs/msg/PlanRequest`: the wire header's fields after the message header (CDR lays a
@@ -293,12 +323,17 @@ pub struct PlanRequest {
 
 impl PlanRequest {
     /// Decodes a recorded request whose channel carries `schema` (ros2msg text): files of
-    /// protocol version 1 (no `request_id`) are read too, their accepted requests (version 1)
-    /// brought to the current version, so a replay is answered as it was then.
+    /// protocol version 1 (no `request_id`) are read too; requests of earlier versions (1, 2)
+    /// are brought to the current version, so a replay is answered as it was then (version 3
+    /// changed object updates only).
     pub fn decode(data: &[u8], schema: &[u8]) -> Result<PlanRequest, String> {
         let current = String::from_utf8_lossy(schema).contains("uint64 request_id");
         if current {
-            return decode(data);
+            let mut r: PlanRequest = decode(data)?;
+            if r.request.version == 2 {
+                r.request.version = crate::wire::PROTOCOL_VERSION;
+            }
+            return Ok(r);
         }
         let old: PlanRequestV1 = decode(data)?;
         let h = old.request;

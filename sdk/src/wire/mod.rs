@@ -20,7 +20,7 @@ pub use plan::{
 pub use status::StatusReply;
 
 /// Version of the protocol these types define.
-pub const PROTOCOL_VERSION: u32 = 2;
+pub const PROTOCOL_VERSION: u32 = 3;
 
 /// A fixed-size, NUL-padded UTF-8 string.
 pub type Name = [u8; 32];

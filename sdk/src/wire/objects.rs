@@ -1,5 +1,12 @@
-//! `ember/<instance>/objects`: motion-capture object updates, publish-subscribe, one object per
-//! sample. A sample with shape [`ShapeKind::Remove`] removes the object.
+//! `ember/<instance>/objects`: motion-capture object updates and what the robot holds,
+//! publish-subscribe, one object per sample.
+//!
+//! - `link` empty: a world object in the base frame, added or moved ([`ShapeKind::Remove`]
+//!   removes it, from the world or the robot's hand);
+//! - `link` a robot link: the robot holds the object there (attach), `pose` in that link's
+//!   frame; [`ShapeKind::Tracked`] attaches the tracked object of that id with its shape;
+//! - `link` empty and [`ShapeKind::Tracked`]: the robot lets go of it (detach); it stays a
+//!   world object at `pose`.
 
 use iceoryx2::prelude::*;
 
@@ -17,6 +24,9 @@ pub enum ShapeKind {
     Sphere = 3,
     /// Capsule along local z: dims = radius, length of the segment, unused.
     Capsule = 4,
+    /// The shape the daemon tracks for this id (attach a tracked object, or detach a held
+    /// one); dims unused.
+    Tracked = 5,
 }
 
 /// One object's state.
@@ -39,4 +49,7 @@ pub struct ObjectUpdate {
     /// The publisher's message number, counting from 1 (0: not numbered); the daemon counts
     /// the numbers it never saw as dropped.
     pub seq: u64,
+    /// The robot link holding the object (attach; `pose` is then in that link's frame), or
+    /// empty: a world object (see the module docs).
+    pub link: super::Name,
 }

@@ -4,7 +4,7 @@
 use iceoryx2::prelude::*;
 
 /// The daemon's state at the time of the reply.
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
 #[type_name("EmberStatus")]
 #[repr(C)]
 pub struct StatusReply {
@@ -60,4 +60,10 @@ pub struct StatusReply {
     pub recording_failures: u64,
     /// 1 while recording is paused by a failure (retrying), else 0.
     pub recording_failing: u64,
+    /// Objects the robot holds.
+    pub world_attached: u64,
+    /// Why the daemon last refused an input or request, NUL-padded UTF-8 (empty: never).
+    pub last_rejection: [u8; 128],
+    /// The [`crate::Status`] code of that refusal (0: none).
+    pub last_rejection_status: u32,
 }

@@ -81,10 +81,16 @@ pub struct Lesson {
 }
 
 impl Lesson {
-    /// Adds what the solution `path` teaches to `experience`.
+    /// Adds what the solution `path` teaches to `experience` (`robot` without what it holds).
     pub fn learn(&self, robot: &Robot, path: &[Vec<f64>], experience: &mut Experience) {
         let s = &self.snapshot;
-        experience.learn(robot, &s.scene, Some((&s.map, &s.octoboxes)), path, None);
+        experience.learn(
+            s.robot(robot),
+            &s.scene,
+            Some((&s.map, &s.octoboxes)),
+            path,
+            None,
+        );
     }
 }
 
@@ -122,7 +128,8 @@ pub fn answer(
     drop(experience);
     let local_samplers = sampler.local_samplers() as u32;
     let retrieval_us = t_ret.elapsed().as_secs_f64() * 1e6;
-    let outcome = planning::plan(robot, &snap.env, &d.request, &mut sampler);
+    // The robot with what it holds in this world.
+    let outcome = planning::plan(snap.robot(robot), &snap.env, &d.request, &mut sampler);
     let method = method_code(d.method);
     match outcome {
         Ok(res) => {
