@@ -8,9 +8,14 @@ use std::path::PathBuf;
 
 /// `key=value` fields of the `RESULT demo` line that has `first`.
 fn result_line(stdout: &str, first: &str) -> BTreeMap<String, String> {
+    named_result_line(stdout, "demo", first)
+}
+
+/// `key=value` fields of the `RESULT <name>` line that has `first`.
+fn named_result_line(stdout: &str, name: &str, first: &str) -> BTreeMap<String, String> {
     let line = stdout
         .lines()
-        .find(|l| l.starts_with("RESULT demo ") && l.contains(first))
+        .find(|l| l.starts_with(&format!("RESULT {name} ")) && l.contains(first))
         .unwrap_or_else(|| panic!("no RESULT line with {first} in:\n{stdout}"));
     line.split_whitespace()
         .skip(2)
@@ -45,7 +50,7 @@ fn the_demo_plans_with_every_method_through_the_daemon_and_keeps_its_session() {
         "{stdout}{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    // The last lines: one per method, then the files.
+    // The last lines: one per method of the picks, then the files.
     let tail: Vec<&str> = stdout.lines().rev().take(4).collect();
     assert!(tail[0].starts_with("RESULT demo recording="), "{stdout}");
     for (method, line) in ["flame", "spark", "uniform"].iter().zip(&tail[1..]) {
@@ -74,6 +79,18 @@ fn the_demo_plans_with_every_method_through_the_daemon_and_keeps_its_session() {
             "{method}: runs {executes} s"
         );
     }
+    // One place episode (after the first pick): the can held through the daemon, put down
+    // without touching the shelf.
+    for method in ["flame", "spark", "uniform"] {
+        let r = named_result_line(&stdout, "demo_place", &format!("method={method} "));
+        assert_eq!(
+            (r["episodes"].as_str(), r["solved"].as_str()),
+            ("1", "1"),
+            "{method}"
+        );
+        assert_eq!(r["unsafe"], "0", "{method}: {stdout}");
+        assert_eq!(r["timed"], r["solved"], "{method}");
+    }
     let files = result_line(&stdout, "recording=");
     assert_eq!(PathBuf::from(&files["database"]), db);
 
@@ -87,6 +104,7 @@ fn the_demo_plans_with_every_method_through_the_daemon_and_keeps_its_session() {
     assert!(recording.starts_with(&record), "{}", recording.display());
     let session = Session::open(&recording).unwrap();
     let (mut clouds, mut objects, mut joints, mut requests, mut no_learn) = (0, 0, 0, 0, 0);
+    let (mut attaches, mut detaches) = (0, 0);
     let (mut solved, mut trajectories) = (0, 0);
     session
         .for_each(
@@ -98,7 +116,15 @@ fn the_demo_plans_with_every_method_through_the_daemon_and_keeps_its_session() {
                         assert!(!points.is_empty());
                         clouds += 1;
                     }
-                    Event::Object(_) => objects += 1,
+                    Event::Object(u) => {
+                        objects += 1;
+                        let tracked = u.shape == ember_sdk::wire::ShapeKind::Tracked as u32;
+                        match (u.link[0] != 0, tracked) {
+                            (true, _) => attaches += 1,
+                            (false, true) => detaches += 1,
+                            _ => {}
+                        }
+                    }
                     Event::Joints { .. } => joints += 1,
                     Event::PlanRequest(r) => {
                         requests += 1;
@@ -116,9 +142,10 @@ fn the_demo_plans_with_every_method_through_the_daemon_and_keeps_its_session() {
         .unwrap();
     assert_eq!(
         (requests, no_learn),
-        (9, 6),
-        "3 episodes × 3 methods, 2 not learned"
+        (12, 8),
+        "(3 picks + 1 place) × 3 methods, 2 not learned"
     );
+    assert_eq!((attaches, detaches), (1, 1));
     assert!(
         clouds >= 3 && joints > 0 && objects >= 10,
         "{clouds} clouds, {joints} joint states, {objects} object updates"
@@ -133,6 +160,6 @@ fn the_demo_plans_with_every_method_through_the_daemon_and_keeps_its_session() {
     // as it was).
     let fresh = crate::daemon::Daemon::start("demo-replay");
     let _client = fresh.client();
-    crate::daemon::replay_check(&recording, &fresh, 9);
+    crate::daemon::replay_check(&recording, &fresh, 12);
     let _ = std::fs::remove_dir_all(dir);
 }

@@ -261,6 +261,37 @@ pub fn held_object(robot: &Robot, spec: &DatasetSpec) -> Result<AttachedObject, 
     })
 }
 
+/// A place task as a client poses it.
+pub struct PlaceTask {
+    /// The scene, without the held object.
+    pub scene: Scene,
+    /// The object (`spec`'s first target) as the tip holds it.
+    pub held: AttachedObject,
+    /// Where the robot holds it: the grasp where it stood.
+    pub start: Vec<f64>,
+    /// Where it puts it down.
+    pub goal: Vec<f64>,
+}
+
+/// A sampled place task, its ends collision-free for the robot holding the object; None when
+/// IK found no ends in the scene drawn.
+pub fn sample_place(
+    robot: &Robot,
+    spec: &DatasetSpec,
+    rng: &mut PlannerRng,
+) -> Result<Option<PlaceTask>, ProblemError> {
+    let held = held_object(robot, spec)?;
+    let o = &held.object;
+    let holding = robot.with_attached(robot.tip(), &o.name, o.shape, o.pose);
+    let (scene, _, ends) = place_candidate(&holding, spec, rng);
+    Ok(ends.map(|(start, goal)| PlaceTask {
+        scene,
+        held,
+        start,
+        goal,
+    }))
+}
+
 /// A place candidate: a sampled scene without the held object, and collision-free ends for
 /// `holding` (the robot with [`held_object`] attached): the grasp where the object stood, and
 /// the dataset's place pose. Both ends hold the object a little above its support: resting on it

@@ -2,17 +2,22 @@
 //! process), streams a shelf world to it from a simulated depth camera, motion capture and joint
 //! encoders over iceoryx2, and runs pick episodes as a client would: each episode moves the
 //! shelf and cans, waits until the daemon has seen the change, and plans the same pick with
-//! FLAME, SPARK and uniform sampling. Only the uniform plan is learned from (the others carry
-//! `FLAG_NO_LEARN`), so the learned methods are always tested on scenes they have not seen.
+//! FLAME, SPARK and uniform sampling. After every third pick comes a place episode: the robot
+//! holds a can (the daemon is told: attach), every method plans putting it down on the lower
+//! shelf, and the can is put down (detach) and taken away. Only the uniform plan is learned
+//! from (the others carry `FLAG_NO_LEARN`), so the learned methods are always tested on scenes
+//! they have not seen.
 
 mod rig;
 mod unseen;
 
 use crate::cli::DemoArgs;
 use ember_engine::planning::PlannerRng;
-use ember_engine::problems;
+use ember_engine::problems::{self, DatasetSpec};
+use ember_engine::robot::Robot;
+use ember_engine::world::Environment;
 use ember_sdk::launch::launch;
-use ember_sdk::wire::{Method, FLAG_NO_LEARN};
+use ember_sdk::wire::{self, Method, ShapeKind, FLAG_NO_LEARN};
 use ember_sdk::{Client, PlanCall, Status};
 use indicatif::{ProgressBar, ProgressStyle};
 use rand::{Rng, SeedableRng};
@@ -28,8 +33,11 @@ const METHODS: [(Method, &str); 3] = [
     (Method::Uniform, "uniform"),
 ];
 
-/// Frames the sensors must deliver after a scene change before the episode plans.
-const SETTLE_FRAMES: u64 = 3;
+/// Frames the sensors must deliver after a scene change before the episode plans. A new
+/// obstacle in space the map has seen free many times needs 3 hits to turn occupied (OctoMap's
+/// defaults: log-odds clamped at 0.12, a hit 0.7), and the frame under way when the scene
+/// changes may still show the old one.
+const SETTLE_FRAMES: u64 = 4;
 
 /// The demo's daemon process; stopped with SIGTERM (databases saved, recording closed).
 struct DemoDaemon {
@@ -153,6 +161,171 @@ fn wait_until(
     }
 }
 
+/// Plans `start → goal` with every method (the uniform plan learned from, the others not),
+/// judging each returned path exactly against `truth` for `robot` (with what it holds): one
+/// progress note per method.
+fn plan_all(
+    client: &Client,
+    robot: &Robot,
+    truth: &Environment,
+    (start, goal): (&[f64], &[f64]),
+    seed: u64,
+    tallies: &mut [Tally],
+) -> anyhow::Result<Vec<String>> {
+    let mut line = Vec::new();
+    for ((method, name), tally) in METHODS.iter().zip(tallies) {
+        let call = PlanCall {
+            start: start.to_vec(),
+            goals: vec![goal.to_vec()],
+            pose: None,
+            method: *method,
+            time_limit_s: 5.0,
+            seed,
+            // Timed under the robot's limits at the daemon's scaling.
+            trajectory: Some((0.0, 0.0)),
+        };
+        let flags = if *method == Method::Uniform {
+            0
+        } else {
+            FLAG_NO_LEARN
+        };
+        let t0 = Instant::now();
+        let reply = client.plan_with_flags(&call, flags, Duration::from_secs(30))?;
+        let ms = t0.elapsed().as_secs_f64() * 1e3;
+        tally.episodes += 1;
+        if reply.status == Status::Ok {
+            match unseen::judge(robot, truth, &reply.path) {
+                unseen::Verdict::Unsafe => tally.unsafe_paths += 1,
+                unseen::Verdict::Grazes => tally.grazes += 1,
+                unseen::Verdict::Free => {}
+            }
+            tally.latencies_ms.push(ms);
+            tally.retrieval_us.push(reply.header.retrieval_us);
+            let executes = reply.trajectory.as_ref().filter(|t| !t.times.is_empty());
+            if let Some(t) = executes {
+                tally.durations_s.push(t.duration);
+                line.push(format!("{name} {ms:.1} ms → runs {:.1} s", t.duration));
+            } else {
+                line.push(format!("{name} {ms:.1} ms (not timed)"));
+            }
+        } else {
+            line.push(format!("{name} {:?}", reply.status));
+        }
+    }
+    Ok(line)
+}
+
+/// One place episode: a fresh shelf scene without the can, the robot at the grasp where the
+/// can stood; the daemon is told the hand holds it (attach), every method plans putting it
+/// down, then it is put down where the plan ends (detach) and taken away. None when no
+/// reachable placement was drawn.
+fn place_episode(
+    client: &Client,
+    rig: &Rig,
+    robot: &Robot,
+    spec: &DatasetSpec,
+    rng: &mut PlannerRng,
+    tallies: &mut [Tally],
+) -> anyhow::Result<Option<Vec<String>>> {
+    let drawn = (0..20)
+        .find_map(|_| problems::sample_place(robot, spec, rng).transpose())
+        .transpose()?;
+    let Some(problems::PlaceTask {
+        scene,
+        held,
+        start,
+        goal,
+    }) = drawn
+    else {
+        return Ok(None);
+    };
+    let o = &held.object;
+    let holding = robot.with_attached(robot.tip(), &o.name, o.shape, o.pose);
+    let truth = scene.environment()?;
+    let before = client.status(Duration::from_secs(5))?;
+    let frames = rig.frames.load(std::sync::atomic::Ordering::Relaxed);
+    rig.set_joints(start.clone());
+    rig.set_scene(scene.clone(), Vec::new());
+    let n = scene.objects.len() as u64;
+    wait_until(client, rig, "the place scene", |s| {
+        s.objects >= before.objects + 2 * n
+            && s.joint_states >= before.joint_states + 2
+            && s.clouds >= before.clouds + SETTLE_FRAMES
+            && rig.frames.load(std::sync::atomic::Ordering::Relaxed) >= frames + SETTLE_FRAMES
+    })?;
+    // The task layer tells the daemon what the hand holds.
+    let mut attach = crate::service::objects::update_of(o);
+    attach.link = wire::name(&held.link);
+    let rejected = client.status(Duration::from_secs(5))?.rejected;
+    client.publish_object_raw(attach)?;
+    wait_until(client, rig, "the attach", |s| {
+        s.world_attached == 1 || s.rejected > rejected
+    })?;
+    let s = client.status(Duration::from_secs(5))?;
+    anyhow::ensure!(
+        s.world_attached == 1,
+        "the daemon refused to attach the can: {}",
+        wire::name_str(&s.last_rejection)
+    );
+    let seed: u64 = rng.random();
+    let line = plan_all(client, &holding, &truth, (&start, &goal), seed, tallies)?;
+    // Put down where the place ends, then taken away.
+    let mut poses = vec![ember_engine::Pose::identity(); robot.links().len()];
+    robot.forward_kinematics(&goal, &mut poses);
+    let (t, q) = ember_engine::scene::pose_to_xyz_xyzw(&(poses[robot.tip()] * o.pose));
+    client.detach(&o.name, [t[0], t[1], t[2], q[0], q[1], q[2], q[3]])?;
+    wait_until(client, rig, "the detach", |s| s.world_attached == 0)?;
+    client.publish_object(
+        &o.name,
+        ShapeKind::Remove,
+        [0.0; 3],
+        [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
+    )?;
+    wait_until(client, rig, "the removal", |s| s.world_objects == n)?;
+    Ok(Some(
+        line.into_iter().map(|l| format!("place: {l}")).collect(),
+    ))
+}
+
+/// Prints the table of `tallies` and returns their `RESULT` lines (`prefix method=...`,
+/// `extra` appended).
+fn report(tallies: &[Tally], prefix: &str, extra: &str) -> Vec<String> {
+    println!(
+        "{:<8} {:>8} {:>7} {:>10} {:>9} {:>13} {:>11} {:>7} {:>7}",
+        "method",
+        "episodes",
+        "solved",
+        "median_ms",
+        "mean_ms",
+        "retrieval_us",
+        "executes_s",
+        "unsafe",
+        "grazes"
+    );
+    let mut results = Vec::new();
+    for ((_, name), t) in METHODS.iter().zip(tallies).rev() {
+        let (median, mean) = (Tally::median(&t.latencies_ms), Tally::mean(&t.latencies_ms));
+        let retrieval = Tally::mean(&t.retrieval_us);
+        let executes = Tally::median(&t.durations_s);
+        println!(
+            "{name:<8} {:>8} {:>7} {median:>10.2} {mean:>9.2} {retrieval:>13.1} {executes:>11.2} {:>7} {:>7}",
+            t.episodes,
+            t.latencies_ms.len(),
+            t.unsafe_paths,
+            t.grazes
+        );
+        results.push(format!(
+            "{prefix} method={name} episodes={} solved={} median_ms={median:.3} mean_ms={mean:.3} retrieval_us={retrieval:.1} median_duration_s={executes:.3} timed={} unsafe={} grazes={}{extra}",
+            t.episodes,
+            t.latencies_ms.len(),
+            t.durations_s.len(),
+            t.unsafe_paths,
+            t.grazes
+        ));
+    }
+    results
+}
+
 pub fn run(args: DemoArgs) -> anyhow::Result<ExitCode> {
     anyhow::ensure!(args.episodes > 0, "--episodes must be at least 1");
     anyhow::ensure!(
@@ -229,6 +402,7 @@ pub fn run(args: DemoArgs) -> anyhow::Result<ExitCode> {
             .expect("valid template"),
     );
     let mut tallies: Vec<Tally> = METHODS.iter().map(|_| Tally::default()).collect();
+    let mut placing: Vec<Tally> = METHODS.iter().map(|_| Tally::default()).collect();
     let mut scene = first;
     let mut draws = 0;
     let mut episode = 0;
@@ -269,45 +443,14 @@ pub fn run(args: DemoArgs) -> anyhow::Result<ExitCode> {
         })?;
         episode += 1;
         let seed: u64 = rng.random();
-        let mut line = Vec::new();
-        for ((method, name), tally) in METHODS.iter().zip(&mut tallies) {
-            let call = PlanCall {
-                start: start.clone(),
-                goals: vec![goal.clone()],
-                pose: None,
-                method: *method,
-                time_limit_s: 5.0,
-                seed,
-                // Timed under the robot's limits at the daemon's scaling.
-                trajectory: Some((0.0, 0.0)),
-            };
-            let flags = if *method == Method::Uniform {
-                0
-            } else {
-                FLAG_NO_LEARN
-            };
-            let t0 = Instant::now();
-            let reply = client.plan_with_flags(&call, flags, Duration::from_secs(30))?;
-            let ms = t0.elapsed().as_secs_f64() * 1e3;
-            tally.episodes += 1;
-            if reply.status == Status::Ok {
-                match unseen::judge(&robot, &truth, &reply.path) {
-                    unseen::Verdict::Unsafe => tally.unsafe_paths += 1,
-                    unseen::Verdict::Grazes => tally.grazes += 1,
-                    unseen::Verdict::Free => {}
-                }
-                tally.latencies_ms.push(ms);
-                tally.retrieval_us.push(reply.header.retrieval_us);
-                let executes = reply.trajectory.as_ref().filter(|t| !t.times.is_empty());
-                if let Some(t) = executes {
-                    tally.durations_s.push(t.duration);
-                    line.push(format!("{name} {ms:.1} ms → runs {:.1} s", t.duration));
-                } else {
-                    line.push(format!("{name} {ms:.1} ms (not timed)"));
-                }
-            } else {
-                line.push(format!("{name} {:?}", reply.status));
+        let mut line = plan_all(&client, &robot, &truth, (&start, &goal), seed, &mut tallies)?;
+        if episode % 3 == 1 {
+            rig.set_joints(start.clone());
+            match place_episode(&client, &rig, &robot, &spec, &mut rng, &mut placing)? {
+                Some(placed) => line.extend(placed),
+                None => line.push("place: no reachable placement drawn".into()),
             }
+            rig.set_joints(start.clone());
         }
         bar.set_message(line.join(", "));
         bar.inc(1);
@@ -318,38 +461,11 @@ pub fn run(args: DemoArgs) -> anyhow::Result<ExitCode> {
     daemon.stop()?;
     let seconds = started.elapsed().as_secs_f64();
 
-    println!(
-        "\n{:<8} {:>8} {:>7} {:>10} {:>9} {:>13} {:>11} {:>7}",
-        "method",
-        "episodes",
-        "solved",
-        "median_ms",
-        "mean_ms",
-        "retrieval_us",
-        "executes_s",
-        "unsafe"
-    );
-    let mut results = Vec::new();
-    for ((_, name), t) in METHODS.iter().zip(&tallies).rev() {
-        let (median, mean) = (Tally::median(&t.latencies_ms), Tally::mean(&t.latencies_ms));
-        let retrieval = Tally::mean(&t.retrieval_us);
-        let executes = Tally::median(&t.durations_s);
-        println!(
-            "{name:<8} {:>8} {:>7} {median:>10.2} {mean:>9.2} {retrieval:>13.1} {executes:>11.2} {:>7} {:>7}",
-            t.episodes,
-            t.latencies_ms.len(),
-            t.unsafe_paths,
-            t.grazes
-        );
-        results.push(format!(
-            "RESULT demo method={name} episodes={} solved={} median_ms={median:.3} mean_ms={mean:.3} retrieval_us={retrieval:.1} median_duration_s={executes:.3} timed={} unsafe={} grazes={} unseen_obstacles={with_unseen}",
-            t.episodes,
-            t.latencies_ms.len(),
-            t.durations_s.len(),
-            t.unsafe_paths,
-            t.grazes
-        ));
-    }
+    println!("\nplace episodes (holding a can, attached through the daemon):");
+    let place_results = report(&placing, "RESULT demo_place", "");
+    println!("\npick episodes:");
+    let unseen = format!(" unseen_obstacles={with_unseen}");
+    let results = report(&tallies, "RESULT demo", &unseen);
     println!(
         "\nplan latency is end to end (client request to reply over iceoryx2), retrieval and \
          trajectory timing included; executes_s: how long the timed trajectory runs on the robot; \
@@ -367,7 +483,7 @@ pub fn run(args: DemoArgs) -> anyhow::Result<ExitCode> {
         Err(_) => println!("recording: {recording}"),
     }
     println!("experience database: {}", args.db.display());
-    for r in results {
+    for r in place_results.into_iter().chain(results) {
         println!("{r}");
     }
     println!(

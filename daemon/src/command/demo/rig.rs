@@ -70,6 +70,11 @@ impl Rig {
         truth.unseen = unseen;
     }
 
+    /// Changes the joint positions the encoders report (from the next frame on).
+    pub fn set_joints(&self, joints: Vec<f64>) {
+        self.truth.lock().expect("truth lock").joints = joints;
+    }
+
     /// Stops streaming; an error of the rig thread (the daemon gone) comes back here.
     pub fn stop(mut self) -> anyhow::Result<()> {
         self.stop.store(true, Ordering::Relaxed);
