@@ -4,12 +4,20 @@
 //! ingest does per batch). Ends with
 //! `RESULT world objects=<n> pairs=<n> add_ms=<f> update_snapshot_ms=<f>` (the last: all the
 //! updates with their snapshots).
+//!
+//! Then ingest against the map's size: the map is grown by walls of points seen from many
+//! poses, and after each growth step one camera-sized cloud (320 × 240 points on a wall 1.5 m
+//! ahead) is folded in and snapshotted as the daemon's ingest thread does, `--repeats` times,
+//! once with the previous snapshot still held (as a plan in flight holds it) and once without.
+//! One line per size: `RESULT world_ingest blocks=<n> memory_mb=<f> held_ms=<f> free_ms=<f>`
+//! (medians).
 
 use ember_engine::collision::Shape;
 use ember_engine::world::map::MapParams;
 use ember_engine::world::model::{World, WorldParams};
 use ember_engine::world::Object;
 use ember_engine::Pose;
+use std::sync::Arc;
 use std::time::Instant;
 
 #[derive(clap::Args)]
@@ -20,6 +28,92 @@ pub struct Args {
     /// Moves, each followed by a snapshot.
     #[arg(long, default_value_t = 100)]
     updates: usize,
+    /// Map growth steps for the ingest measurement (0: skip it).
+    #[arg(long, default_value_t = 5)]
+    map_steps: usize,
+    /// Clouds measured per map size and mode.
+    #[arg(long, default_value_t = 9)]
+    repeats: usize,
+}
+
+/// `w × h` points on a wall `d` metres ahead of a sensor (optical frame: z forward), spanning
+/// `span` metres, rippled so that neighbouring clouds do not coincide.
+fn wall(w: usize, h: usize, d: f32, span: f32, phase: f32) -> Vec<[f32; 3]> {
+    (0..w * h)
+        .map(|i| {
+            let (u, v) = (
+                (i % w) as f32 / w as f32 - 0.5,
+                (i / w) as f32 / h as f32 - 0.5,
+            );
+            [u * span, v * span, d + 0.05 * (7.0 * u + phase).sin()]
+        })
+        .collect()
+}
+
+/// The ingest measurement (see the module docs).
+fn ingest(args: &Args) {
+    let mut world = World::new(&WorldParams {
+        map: MapParams {
+            bounds: Some(([-2.0, -2.0, -0.1], [3.0, 2.0, 2.5])),
+            discretize: true,
+            ..MapParams::default()
+        },
+        use_map: true,
+        carve_padding: Some(0.02),
+        self_filter_padding: 0.03,
+    });
+    let robot = ember_engine::robot::Robot::builtin("fetch").expect("built-in");
+    // A head camera looking ahead (optical z along the base's x).
+    let camera = Pose::translation(0.15, 0.0, 1.0)
+        * Pose::rotation(nalgebra::Vector3::y() * std::f64::consts::FRAC_PI_2);
+    let mut pose_k = 0usize;
+    for step in 0..args.map_steps {
+        // Grow: walls seen from poses turning around the robot and climbing.
+        for _ in 0..(4usize << step) {
+            pose_k += 1;
+            let yaw = pose_k as f64 * 0.7;
+            let pitch = 0.4 + 0.6 * ((pose_k as f64 * 0.37).sin());
+            let from = Pose::translation(0.0, 0.0, 0.3 + 0.05 * (pose_k % 30) as f64)
+                * Pose::rotation(nalgebra::Vector3::z() * yaw)
+                * Pose::rotation(
+                    nalgebra::Vector3::y() * (std::f64::consts::FRAC_PI_2 + pitch - 0.4),
+                );
+            let points = wall(
+                160,
+                120,
+                1.0 + (pose_k % 5) as f32 * 0.4,
+                2.5,
+                pose_k as f32,
+            );
+            world.insert_cloud(&robot, &points, &from);
+        }
+        let blocks = world.snapshot().map.block_count();
+        let memory_mb = world.snapshot().map.memory_bytes() as f64 / 1e6;
+        let mut time = |hold: bool| {
+            let mut held = Some(Arc::new(world.snapshot()));
+            let mut ms: Vec<f64> = (0..args.repeats)
+                .map(|r| {
+                    let points = wall(320, 240, 1.5, 1.6, r as f32 * 0.3);
+                    let t = Instant::now();
+                    world.insert_cloud(&robot, &points, &camera);
+                    let snap = Arc::new(world.snapshot());
+                    let elapsed = t.elapsed().as_secs_f64() * 1e3;
+                    held = hold.then_some(snap);
+                    elapsed
+                })
+                .collect();
+            drop(held);
+            ember_sdk::stats::median(&mut ms)
+        };
+        let (held_ms, free_ms) = (time(true), time(false));
+        println!(
+            "map of {blocks} blocks ({memory_mb:.1} MB): a {}-point cloud folded in and snapshotted in {held_ms:.2} ms with the last snapshot held, {free_ms:.2} ms without",
+            320 * 240
+        );
+        println!(
+            "RESULT world_ingest blocks={blocks} memory_mb={memory_mb:.2} held_ms={held_ms:.3} free_ms={free_ms:.3}"
+        );
+    }
 }
 
 fn object(k: usize, dx: f64) -> Object {
@@ -61,5 +155,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "RESULT world objects={} pairs={pairs} add_ms={add_ms:.2} update_snapshot_ms={update_ms:.2}",
         args.objects
     );
+    ingest(&args);
     Ok(())
 }
