@@ -137,10 +137,13 @@ pub fn fit(shapes: &[LinkShape], protrusion: f64) -> Vec<Sphere> {
         .flat_map(|p| p.triangles.iter())
         .map(triangle_area)
         .sum();
-    // Sample spacing: fine enough that the covering slack stays well inside the protrusion.
-    let spacing = (protrusion / 4.0)
-        .max((area / MAX_SAMPLES).sqrt())
-        .min(protrusion);
+    // Sample spacing: fine enough that the covering slack stays well inside the protrusion,
+    // and never more than MAX_SAMPLES samples: parts of more than MAX_SAMPLES·protrusion² of
+    // surface (4 m² at 1 cm; no real link) get a coarser cover rather than unbounded work (a
+    // fuzzed URDF with a 10 m box took minutes and gigabytes).
+    let spacing = (protrusion / 4.0).max((area / MAX_SAMPLES).sqrt());
+    // Such parts are covered by spheres as proud as the samples are apart (no change below).
+    let protrusion = protrusion.max(spacing);
     let slack = spacing / 3f64.sqrt() + 1e-6;
 
     // Surface samples of the union.
