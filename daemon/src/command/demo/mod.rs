@@ -445,7 +445,6 @@ pub fn run(args: DemoArgs) -> anyhow::Result<ExitCode> {
         let seed: u64 = rng.random();
         let mut line = plan_all(&client, &robot, &truth, (&start, &goal), seed, &mut tallies)?;
         if episode % 3 == 1 {
-            rig.set_joints(start.clone());
             match place_episode(&client, &rig, &robot, &spec, &mut rng, &mut placing)? {
                 Some(placed) => line.extend(placed),
                 None => line.push("place: no reachable placement drawn".into()),
