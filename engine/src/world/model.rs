@@ -8,7 +8,7 @@ use super::{Environment, Object};
 use crate::collision::checker::Contact;
 use crate::collision::exact::ExactChecker;
 use crate::collision::Shape;
-use crate::experience::flame::{octoboxes, Octobox};
+use crate::experience::flame::{octoboxes, octoboxes_updated, Octobox};
 use crate::experience::spark::{PairSet, PairsSnapshot};
 use crate::experience::ExperienceParams;
 use crate::robot::spheres::PlacedSpheres;
@@ -395,8 +395,12 @@ impl World {
         };
         let map = Arc::make_mut(&mut self.map);
         let report = map.insert_cloud_masked(points, sensor_pose, &mask);
+        if self.use_map {
+            map.refresh_clearance();
+        }
         if !report.changed.is_empty() {
-            self.map_octoboxes = Arc::new(octoboxes(map));
+            self.map_octoboxes =
+                Arc::new(octoboxes_updated(&self.map_octoboxes, map, &report.changed));
             self.merge_octoboxes();
         }
         report
@@ -413,6 +417,9 @@ impl World {
         if self.map.any_occupied_in(lo, hi, inside) {
             let map = Arc::make_mut(&mut self.map);
             map.clear_occupied(lo, hi, inside);
+            if self.use_map {
+                map.refresh_clearance();
+            }
             self.map_octoboxes = Arc::new(octoboxes(map));
         }
         let blocks = voxelise(&self.map, &alone, placed.lo, placed.hi);
@@ -443,8 +450,8 @@ impl World {
     pub fn snapshot(&self) -> Snapshot {
         let mut env = self.env.clone();
         if self.use_map {
-            // The planner's grids, built here (the ingest thread) once per map state rather
-            // than by the first plan.
+            // The planner's grids, kept up to date by the changes above; built here (the
+            // ingest thread) when they are not, rather than by the first plan.
             self.map.clearance();
             env.set_map(Some(self.map.clone()));
         }

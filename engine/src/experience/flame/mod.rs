@@ -11,4 +11,4 @@ mod index;
 pub mod primitive;
 
 pub use database::FlameDb;
-pub use primitive::{octoboxes, Octobox};
+pub use primitive::{octoboxes, octoboxes_updated, Octobox};

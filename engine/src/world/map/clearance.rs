@@ -3,17 +3,24 @@
 //!
 //! Two grids: the fine one's cells are the map's voxels, the coarse one's its 4×4×4 blocks
 //! (reaching three times as far, for the links' and clusters' larger balls). Each cell holds
-//! the exact Euclidean distance (Felzenszwalb and Huttenlocher's separable transform, in cell
-//! units) from its centre to the nearest occupied cell centre, rounded down to 1/32 of a cell and saturated at the grid's padding. A ball at
-//! `p` (in cell `q`) with radius `r` is clear of every occupied cell cube (and so of every
-//! occupied voxel) when `d(q) − |p − c(q)| − h ≥ r`, with `h` a cell's half diagonal: the
-//! triangle inequality twice.
-//! The grid covers the occupied voxels' box grown by the padding; farther out the box itself
-//! bounds the distance. A query the grid cannot clear is decided exactly by the map
-//! ([`OccupancyMap::sphere_collides`](super::OccupancyMap::sphere_collides)).
+//! the exact Euclidean distance (a separable transform, in cell units) from its centre to the
+//! nearest occupied cell centre, rounded down to 1/32 of a cell and saturated at the grid's
+//! padding. A ball at `p` (in cell `q`) with radius `r` is clear of every occupied cell cube
+//! (and so of every occupied voxel) when `d(q) − |p − c(q)| − h ≥ r`, with `h` a cell's half
+//! diagonal: the triangle inequality twice.
+//! The grid covers a box holding every occupied voxel (the cover) grown by the padding; farther
+//! out the cover itself bounds the distance. A query the grid cannot clear is decided exactly by
+//! the map ([`OccupancyMap::sphere_collides`](super::OccupancyMap::sphere_collides)).
+//!
+//! Kept incrementally: as distances saturate at the padding, a change of occupancy alters only
+//! cells within the padding of it, and those depend only on occupied cells within twice the
+//! padding; [`Clearance::update`] recomputes just that much around the blocks a cloud changed
+//! (growing the cover when occupied space appears past it). Cells live in bricks that copies
+//! share, so a snapshot holding the grids costs the next update only the bricks it rewrites.
 
-use super::{OccupancyMap, VoxelKey};
+use super::{BlockKey, OccupancyMap, VoxelKey};
 use crate::collision::batch::lanes::{F8, LANES};
+use std::sync::Arc;
 
 /// Distances are stored in these fractions of a voxel.
 const STEPS: f64 = 32.0;
@@ -34,57 +41,187 @@ pub struct Clearance {
     coarse: Level,
     /// Balls at most this large (metres) are asked of the fine grid.
     fine_radius: f64,
-    /// Occupied voxel cubes' bounding box, metres.
+    /// Blocks `[lo, hi]` holding every occupied voxel; the grids cover them grown by their
+    /// padding.
+    cover: (BlockKey, BlockKey),
+    /// The cover's box, metres.
     occupied_lo: [f64; 3],
     occupied_hi: [f64; 3],
 }
 
-/// One grid: cells of edge `res` holding distances to the nearest occupied cell.
+/// One grid: cells of edge `res` holding distances to the nearest occupied cell, stored in
+/// bricks of `BRICK`³ cells that copies share (a copy of the grids copies no cell; an update
+/// copies only the bricks it writes, and bricks far from everything share one saturated brick).
 #[derive(Debug, Clone)]
 struct Level {
     res: f64,
     inv_res: f64,
-    /// Key of cell `[0, 0, 0]`.
+    /// Key of cell `[0, 0, 0]` (a multiple of `BRICK` on each axis).
     lo: VoxelKey,
+    /// Cells per axis (multiples of `BRICK`).
     dims: [usize; 3],
-    /// Per cell (`z` fastest, then `y`, then `x`): distance in 1/32 cells, saturated.
-    cells: Vec<u16>,
+    /// Bricks per axis.
+    bdims: [usize; 3],
+    /// Per brick (`z` fastest, then `y`, then `x`), per cell likewise: distance in 1/32 cells,
+    /// saturated.
+    bricks: Vec<Arc<Brick>>,
+    /// The brick every cell of which is saturated.
+    far: Arc<Brick>,
     /// Half diagonal of a cell, metres.
     half_diagonal: f64,
+    /// Padding in cells: distances saturate here, and the grid reaches this far past the cover.
+    pad: i32,
 }
+
+/// Edge of a brick, cells.
+const BRICK: usize = 8;
+const BRICK_BITS: u32 = 3;
+type Brick = [u16; BRICK * BRICK * BRICK];
 
 /// The coarse grid reaches this many times the fine grid's padding.
 const COARSE_REACH: f64 = 3.0;
+
+/// When occupied space appears outside the cover, the cover grows this many blocks past it, so
+/// a map growing at its edge does not regrow the grids every cloud.
+const GROW_SLACK: i32 = 4;
+
+/// Dirty regions are gathered per tile of this many blocks along each axis.
+const TILE_BLOCKS: i32 = 8;
 
 impl Clearance {
     /// The grids of `map`, the fine one padded by `pad` metres around its occupied voxels;
     /// `None` when the map has no occupied voxel or a grid would exceed [`MAX_CELLS`].
     pub fn of(map: &OccupancyMap, pad: f64) -> Option<Self> {
-        let res = map.resolution();
-        let mut keys = Vec::new();
-        let mut blocks = Vec::new();
+        let mut cover: Option<(BlockKey, BlockKey)> = None;
         for (b, &i) in &map.index {
-            let occupied = map.blocks[i as usize].occupied;
-            if occupied != 0 {
-                blocks.push(*b);
-            }
-            for bit in super::bits(occupied) {
-                keys.push([
-                    b[0] * 4 + (bit / 16) as i32,
-                    b[1] * 4 + (bit / 4 % 4) as i32,
-                    b[2] * 4 + (bit % 4) as i32,
-                ]);
+            if map.blocks[i as usize].occupied != 0 {
+                let (lo, hi) = cover.get_or_insert((*b, *b));
+                for a in 0..3 {
+                    lo[a] = lo[a].min(b[a]);
+                    hi[a] = hi[a].max(b[a]);
+                }
             }
         }
-        let (fine, (klo, khi)) = Level::of(&keys, res, pad)?;
-        let (coarse, _) = Level::of(&blocks, 4.0 * res, COARSE_REACH * pad)?;
-        Some(Clearance {
+        let cover = cover?;
+        let res = map.resolution();
+        let fine = Level::empty(
+            res,
+            pad,
+            (cover.0.map(|v| 4 * v), cover.1.map(|v| 4 * v + 3)),
+        )?;
+        let coarse = Level::empty(4.0 * res, COARSE_REACH * pad, cover)?;
+        let mut c = Clearance {
             fine_radius: pad - 2.0 * fine.half_diagonal,
             fine,
             coarse,
-            occupied_lo: klo.map(|v| v as f64 * res),
-            occupied_hi: khi.map(|v| (v + 1) as f64 * res),
-        })
+            cover,
+            occupied_lo: [0.0; 3],
+            occupied_hi: [0.0; 3],
+        };
+        c.set_cover(cover, res);
+        c.recompute(map, cover);
+        Some(c)
+    }
+
+    fn set_cover(&mut self, cover: (BlockKey, BlockKey), res: f64) {
+        self.cover = cover;
+        self.occupied_lo = cover.0.map(|v| (4 * v) as f64 * res);
+        self.occupied_hi = cover.1.map(|v| (4 * v + 4) as f64 * res);
+    }
+
+    /// Recomputes both grids around the blocks `[lo, hi]` (as far as their padding reaches).
+    fn recompute(&mut self, map: &OccupancyMap, (lo, hi): (BlockKey, BlockKey)) {
+        let mut keys = Vec::new();
+        self.fine.recompute(
+            (lo.map(|v| 4 * v), hi.map(|v| 4 * v + 3)),
+            &mut keys,
+            |(wlo, whi), keys| {
+                map.occupied_blocks(wlo.map(|v| v >> 2), whi.map(|v| v >> 2), |b, mask| {
+                    for bit in super::bits(mask) {
+                        let k = [
+                            b[0] * 4 + (bit / 16) as i32,
+                            b[1] * 4 + (bit / 4 % 4) as i32,
+                            b[2] * 4 + (bit % 4) as i32,
+                        ];
+                        if (0..3).all(|a| wlo[a] <= k[a] && k[a] <= whi[a]) {
+                            keys.push(k);
+                        }
+                    }
+                    false
+                });
+            },
+        );
+        self.coarse
+            .recompute((lo, hi), &mut keys, |(wlo, whi), keys| {
+                map.occupied_blocks(wlo, whi, |b, _| {
+                    keys.push(b);
+                    false
+                });
+            });
+    }
+
+    /// Brings the grids up to date with `map` after the occupancy masks of the blocks `changed`
+    /// changed, recomputing only around them (growing the grids when occupied space appears
+    /// past their cover). False, leaving the grids unusable, when that would exceed
+    /// [`MAX_CELLS`]; the caller builds anew.
+    pub(crate) fn update(&mut self, map: &OccupancyMap, changed: &[BlockKey]) -> bool {
+        let (mut lo, mut hi) = self.cover;
+        for b in changed {
+            if map.octobox(*b) != 0 {
+                for a in 0..3 {
+                    if b[a] < lo[a] {
+                        lo[a] = b[a] - GROW_SLACK;
+                    }
+                    if b[a] > hi[a] {
+                        hi[a] = b[a] + GROW_SLACK;
+                    }
+                }
+            }
+        }
+        if (lo, hi) != self.cover {
+            let fine = (lo.map(|v| 4 * v), hi.map(|v| 4 * v + 3));
+            if !self.fine.grow(fine) || !self.coarse.grow((lo, hi)) {
+                return false;
+            }
+            self.set_cover((lo, hi), map.resolution());
+        }
+        // Recompute around the changed blocks' bounding box per tile, or around their one
+        // bounding box, or everything: whichever transforms the fewest cells.
+        let mut tiles: rustc_hash::FxHashMap<BlockKey, (BlockKey, BlockKey)> = Default::default();
+        let Some(&first) = changed.first() else {
+            return true;
+        };
+        let mut all = (first, first);
+        for b in changed {
+            for (lo, hi) in [
+                tiles
+                    .entry(b.map(|v| v.div_euclid(TILE_BLOCKS)))
+                    .or_insert((*b, *b)),
+                &mut all,
+            ] {
+                for a in 0..3 {
+                    lo[a] = lo[a].min(b[a]);
+                    hi[a] = hi[a].max(b[a]);
+                }
+            }
+        }
+        let window = |(lo, hi): &(BlockKey, BlockKey)| -> usize {
+            (0..3)
+                .map(|a| (4 * (hi[a] - lo[a] + 1) + 4 * self.fine.pad) as usize)
+                .product()
+        };
+        let per_tile: usize = tiles.values().map(window).sum();
+        let one = window(&all);
+        if one.min(per_tile) > self.fine.len() {
+            self.recompute(map, self.cover);
+        } else if one <= per_tile {
+            self.recompute(map, all);
+        } else {
+            for region in tiles.into_values() {
+                self.recompute(map, region);
+            }
+        }
+        true
     }
 
     /// True when a ball at `p` with radius `r` surely touches no occupied voxel; false means
@@ -130,8 +267,7 @@ impl Clearance {
             let k = c.map(|v| (v * inv).floor() as i32);
             let cell = [0, 1, 2].map(|a| k[a].wrapping_sub(g.lo[a]) as u32 as usize);
             let clear = if cell[0] < g.dims[0] && cell[1] < g.dims[1] && cell[2] < g.dims[2] {
-                let at = (cell[0] * g.dims[1] + cell[1]) * g.dims[2] + cell[2];
-                let d = g.cells[at] as f32 * step;
+                let d = g.get(cell) as f32 * step;
                 let o = [0, 1, 2].map(|a| c[a] - (k[a] as f32 + 0.5) * res);
                 let off = (o[0] * o[0] + o[1] * o[1] + o[2] * o[2]).sqrt();
                 d - off >= need
@@ -145,38 +281,162 @@ impl Clearance {
 
     /// Cells in the grids.
     pub fn cells(&self) -> usize {
-        self.fine.cells.len() + self.coarse.cells.len()
+        self.fine.len() + self.coarse.len()
     }
 }
 
 impl Level {
-    /// The grid over `keys` (cells of edge `res`) padded by `pad` metres, with the keys'
-    /// bounding box; `None` without keys or past [`MAX_CELLS`].
-    fn of(keys: &[VoxelKey], res: f64, pad: f64) -> Option<(Self, (VoxelKey, VoxelKey))> {
-        let first = *keys.first()?;
-        let (mut klo, mut khi) = (first, first);
-        for k in keys {
-            for a in 0..3 {
-                klo[a] = klo[a].min(k[a]);
-                khi[a] = khi[a].max(k[a]);
-            }
-        }
-        let pad_cells = (pad / res).ceil().clamp(1.0, 2000.0) as i32;
-        let lo = klo.map(|v| v - pad_cells);
-        let dims = [0, 1, 2].map(|a| (khi[a] + pad_cells - lo[a] + 1) as usize);
-        if dims.iter().try_fold(1usize, |n, &d| n.checked_mul(d))? > MAX_CELLS {
-            return None;
-        }
-        let cells = distance_transform(keys, lo, dims, pad_cells as f64);
-        let level = Level {
+    /// A grid of cells of edge `res` over the cells `[lo, hi]` grown by `pad` metres, every
+    /// cell saturated; `None` past [`MAX_CELLS`].
+    fn empty(res: f64, pad: f64, (lo, hi): (VoxelKey, VoxelKey)) -> Option<Self> {
+        let pad = (pad / res).ceil().clamp(1.0, 2000.0) as i32;
+        let cap = (pad as f64 * STEPS).min(u16::MAX as f64) as u16;
+        let mut level = Level {
             res,
             inv_res: 1.0 / res,
-            lo,
-            dims,
-            cells,
+            lo: [0; 3],
+            dims: [0; 3],
+            bdims: [0; 3],
+            bricks: Vec::new(),
+            far: Arc::new([cap; BRICK * BRICK * BRICK]),
             half_diagonal: res * 3f64.sqrt() / 2.0,
+            pad,
         };
-        Some((level, (klo, khi)))
+        level.grow((lo, hi)).then_some(level)
+    }
+
+    /// Saturated distance in stored units.
+    fn cap(&self) -> u16 {
+        self.far[0]
+    }
+
+    /// Cells in the grid.
+    fn len(&self) -> usize {
+        self.dims.iter().product()
+    }
+
+    /// The brick holding cell `c` (grid coordinates) and the cell's place in it.
+    #[inline(always)]
+    fn locate(&self, c: [usize; 3]) -> (usize, usize) {
+        let b = c.map(|v| v >> BRICK_BITS);
+        let i = c.map(|v| v & (BRICK - 1));
+        (
+            (b[0] * self.bdims[1] + b[1]) * self.bdims[2] + b[2],
+            (((i[0] << BRICK_BITS) | i[1]) << BRICK_BITS) | i[2],
+        )
+    }
+
+    /// The stored value of cell `c` (grid coordinates, inside the grid).
+    #[inline(always)]
+    fn get(&self, c: [usize; 3]) -> u16 {
+        let (b, i) = self.locate(c);
+        self.bricks[b][i]
+    }
+
+    /// Regrows the grid to the cover `[lo, hi]` (cells), keeping the cells it had; the new
+    /// ones are saturated, as they are farther than the padding from every occupied cell the
+    /// grid knew. False past [`MAX_CELLS`].
+    fn grow(&mut self, (lo, hi): (VoxelKey, VoxelKey)) -> bool {
+        let b = BRICK as i32;
+        let new_lo = lo.map(|v| (v - self.pad).div_euclid(b) * b);
+        let bdims =
+            [0, 1, 2].map(|a| ((hi[a] + self.pad).div_euclid(b) - new_lo[a] / b + 1) as usize);
+        let dims = bdims.map(|d| d * BRICK);
+        match dims.iter().try_fold(1usize, |n, &d| n.checked_mul(d)) {
+            Some(n) if n <= MAX_CELLS => {
+                let mut bricks = vec![self.far.clone(); bdims.iter().product()];
+                let off = [0, 1, 2].map(|a| ((self.lo[a] - new_lo[a]) / b) as usize);
+                for x in 0..self.bdims[0] {
+                    for y in 0..self.bdims[1] {
+                        for z in 0..self.bdims[2] {
+                            let from = (x * self.bdims[1] + y) * self.bdims[2] + z;
+                            let to = ((x + off[0]) * bdims[1] + y + off[1]) * bdims[2] + z + off[2];
+                            bricks[to] = self.bricks[from].clone();
+                        }
+                    }
+                }
+                self.lo = new_lo;
+                self.dims = dims;
+                self.bdims = bdims;
+                self.bricks = bricks;
+                true
+            }
+            _ => false,
+        }
+    }
+
+    /// Recomputes the cells within the padding of the cells `[lo, hi]`: a transform over that
+    /// region grown by the padding again (every occupied cell that can bring a region cell under
+    /// the padding lies in it), whose occupied cells `seeds` pushes onto `keys`.
+    fn recompute(
+        &mut self,
+        (lo, hi): (VoxelKey, VoxelKey),
+        keys: &mut Vec<VoxelKey>,
+        seeds: impl FnOnce((VoxelKey, VoxelKey), &mut Vec<VoxelKey>),
+    ) {
+        let glo = self.lo;
+        let ghi = [0, 1, 2].map(|a| glo[a] + self.dims[a] as i32 - 1);
+        let clip = |k: VoxelKey, by: i32| -> (VoxelKey, VoxelKey) {
+            (
+                [0, 1, 2].map(|a| (k[a] - by).max(glo[a])),
+                [0, 1, 2].map(|a| (k[a] + by).min(ghi[a])),
+            )
+        };
+        let (rlo, _) = clip(lo, self.pad);
+        let (_, rhi) = clip(hi, self.pad);
+        if (0..3).any(|a| rlo[a] > rhi[a]) {
+            return;
+        }
+        let (wlo, _) = clip(rlo, self.pad);
+        let (_, whi) = clip(rhi, self.pad);
+        keys.clear();
+        seeds((wlo, whi), keys);
+        let wdims = [0, 1, 2].map(|a| (whi[a] - wlo[a] + 1) as usize);
+        let d = distance_transform(keys, wlo, wdims, self.pad as f64);
+        let cap = self.cap();
+        // Brick by brick over the region.
+        let (clo, chi) = (
+            [0, 1, 2].map(|a| (rlo[a] - glo[a]) as usize),
+            [0, 1, 2].map(|a| (rhi[a] - glo[a]) as usize),
+        );
+        let (blo, bhi) = (clo.map(|v| v / BRICK), chi.map(|v| v / BRICK));
+        let woff = [0, 1, 2].map(|a| (glo[a] - wlo[a]) as isize);
+        let window = |c: [usize; 3]| -> usize {
+            let w = [0, 1, 2].map(|a| (c[a] as isize + woff[a]) as usize);
+            (w[0] * wdims[1] + w[1]) * wdims[2] + w[2]
+        };
+        for bx in blo[0]..=bhi[0] {
+            for by in blo[1]..=bhi[1] {
+                for bz in blo[2]..=bhi[2] {
+                    let b = [bx, by, bz];
+                    let lo = [0, 1, 2].map(|a| clo[a].max(b[a] * BRICK));
+                    let hi = [0, 1, 2].map(|a| chi[a].min(b[a] * BRICK + BRICK - 1));
+                    let at = (bx * self.bdims[1] + by) * self.bdims[2] + bz;
+                    let whole = (0..3).all(|a| lo[a] == b[a] * BRICK && hi[a] == lo[a] + BRICK - 1);
+                    let all_far = (lo[0]..=hi[0]).all(|x| {
+                        (lo[1]..=hi[1]).all(|y| {
+                            let from = window([x, y, lo[2]]);
+                            d[from..=from + hi[2] - lo[2]].iter().all(|&v| v == cap)
+                        })
+                    });
+                    if all_far && (whole || Arc::ptr_eq(&self.bricks[at], &self.far)) {
+                        self.bricks[at] = self.far.clone();
+                        continue;
+                    }
+                    let brick = Arc::make_mut(&mut self.bricks[at]);
+                    for x in lo[0]..=hi[0] {
+                        for y in lo[1]..=hi[1] {
+                            let from = window([x, y, lo[2]]);
+                            let to = ((((x & (BRICK - 1)) << BRICK_BITS) | (y & (BRICK - 1)))
+                                << BRICK_BITS)
+                                | (lo[2] & (BRICK - 1));
+                            let run = hi[2] - lo[2] + 1;
+                            brick[to..to + run].copy_from_slice(&d[from..from + run]);
+                        }
+                    }
+                }
+            }
+        }
     }
 
     /// A lower bound on the distance from `p` to the nearest occupied cell's cube (`None`
@@ -189,9 +449,7 @@ impl Level {
         if (0..3).any(|a| cell[a] < 0 || cell[a] >= self.dims[a] as i64) {
             return None;
         }
-        let i =
-            (cell[0] as usize * self.dims[1] + cell[1] as usize) * self.dims[2] + cell[2] as usize;
-        let d = self.cells[i] as f64 * (self.res / STEPS);
+        let d = self.get(cell.map(|v| v as usize)) as f64 * (self.res / STEPS);
         let off: f64 = (0..3)
             .map(|a| (p[a] - (k[a] as f64 + 0.5) * self.res).powi(2))
             .sum::<f64>()
@@ -200,75 +458,68 @@ impl Level {
     }
 }
 
-/// Lines transformed together in the strided passes: one cache line's worth of neighbours.
-const TILE: usize = 16;
-
-/// Exact squared distances (voxel units) from every cell of the grid to the nearest of `keys`,
-/// one axis at a time; stored as `floor(32·distance)`, saturated at `pad` voxels. Values past
-/// the padding are set back to infinity after each pass (they cannot bring a cell under the
-/// padding), so lines far from everything stay empty and are skipped. The passes across `z`
-/// (the contiguous axis) move `TILE` neighbouring lines at once, so memory is read in runs
-/// rather than one value per cache line.
+/// Exact squared distances (cell units) from every cell of the grid to the nearest of `keys`,
+/// one axis at a time, stored as `floor(32·distance)` saturated at `pad` cells. As results
+/// saturate, each pass needs only the neighbours within `pad` cells: a cell under the padding
+/// has its nearest key within `pad` along every axis. The first pass (along `z`, on the bare
+/// keys) counts cells to the nearest key; the others take, row by row, the minimum of the
+/// `2·pad + 1` neighbouring rows each raised by its squared offset, over whole contiguous
+/// rows at once (which vectorises).
 fn distance_transform(keys: &[VoxelKey], lo: VoxelKey, dims: [usize; 3], pad: f64) -> Vec<u16> {
     let n = dims[0] * dims[1] * dims[2];
+    let pad_cells = pad as usize;
+    let far = (pad * pad) as f32;
     let mut d = vec![f32::INFINITY; n];
+    let mut lines = Vec::with_capacity(keys.len());
     for k in keys {
         let c = [0, 1, 2].map(|a| (k[a] - lo[a]) as usize);
-        d[(c[0] * dims[1] + c[1]) * dims[2] + c[2]] = 0.0;
+        let line = c[0] * dims[1] + c[1];
+        d[line * dims[2] + c[2]] = 0.0;
+        lines.push(line);
     }
-    let longest = dims.iter().copied().max().unwrap_or(0);
-    let mut env = Envelope::new(longest);
-    let mut out = vec![0.0; longest];
-    let far = (pad * pad) as f32;
-    let clip = |v: f32| if v > far { f32::INFINITY } else { v };
-    // Along z: contiguous lines.
-    for line in d.chunks_exact_mut(dims[2]) {
-        if line.iter().any(|v| v.is_finite()) {
-            env.transform(line, &mut out[..dims[2]]);
-            for (v, o) in line.iter_mut().zip(&out) {
-                *v = clip(*o);
-            }
+    lines.sort_unstable();
+    lines.dedup();
+    // Along z: cells to the nearest key in the line, forwards then backwards.
+    for &line in &lines {
+        let row = &mut d[line * dims[2]..][..dims[2]];
+        let mut run = usize::MAX;
+        for v in row.iter_mut() {
+            run = if *v == 0.0 { 0 } else { run.saturating_add(1) };
+            *v = run as f32;
+        }
+        let mut run = usize::MAX;
+        for v in row.iter_mut().rev() {
+            run = if *v == 0.0 { 0 } else { run.saturating_add(1) };
+            let m = v.min(run as f32);
+            *v = if m * m <= far { m * m } else { f32::INFINITY };
         }
     }
-    // Along y, then x: TILE lines side by side (neighbouring z).
-    let mut tile = vec![0.0f32; TILE * longest];
-    for axis in [1, 0] {
-        let len = dims[axis];
-        let stride = if axis == 1 {
-            dims[2]
-        } else {
-            dims[1] * dims[2]
-        };
-        let outer = if axis == 1 { dims[0] } else { dims[1] };
-        let outer_stride = if axis == 1 {
-            dims[1] * dims[2]
-        } else {
-            dims[2]
-        };
-        for o in 0..outer {
-            for z0 in (0..dims[2]).step_by(TILE) {
-                let width = TILE.min(dims[2] - z0);
-                let base = o * outer_stride + z0;
-                for t in 0..len {
-                    let row = &d[base + t * stride..][..width];
-                    for (w, v) in row.iter().enumerate() {
-                        tile[w * len + t] = *v;
+    // Along y (rows of z within each x plane), then along x (whole planes).
+    let mut src = vec![0.0f32; n];
+    let plane = dims[1] * dims[2];
+    for (axis, len, stride) in [(1, dims[1], dims[2]), (0, dims[0], plane)] {
+        src.copy_from_slice(&d);
+        let groups = if axis == 1 { dims[0] } else { 1 };
+        for g in 0..groups {
+            let base = g * plane;
+            for t in 0..len {
+                let out = &mut d[base + t * stride..][..stride];
+                let lo = t.saturating_sub(pad_cells);
+                let hi = (t + pad_cells).min(len - 1);
+                for p in lo..=hi {
+                    if p == t {
+                        continue;
+                    }
+                    let w = ((p as f32) - (t as f32)).powi(2);
+                    let row = &src[base + p * stride..][..stride];
+                    for (o, &v) in out.iter_mut().zip(row) {
+                        let c = v + w;
+                        // A select, not a branch: this is what vectorises.
+                        *o = if c < *o { c } else { *o };
                     }
                 }
-                for w in 0..width {
-                    let line = &mut tile[w * len..][..len];
-                    if line.iter().any(|v| v.is_finite()) {
-                        env.transform(line, &mut out[..len]);
-                        for (v, o) in line.iter_mut().zip(&out) {
-                            *v = clip(*o);
-                        }
-                    }
-                }
-                for t in 0..len {
-                    let row = &mut d[base + t * stride..][..width];
-                    for (w, v) in row.iter_mut().enumerate() {
-                        *v = tile[w * len + t];
-                    }
+                for o in out.iter_mut() {
+                    *o = if *o > far { f32::INFINITY } else { *o };
                 }
             }
         }
@@ -280,71 +531,30 @@ fn distance_transform(keys: &[VoxelKey], lo: VoxelKey, dims: [usize; 3], pad: f6
         .collect()
 }
 
-/// Scratch of the one-dimensional transform (lower envelope of parabolas).
-struct Envelope {
-    v: Vec<usize>,
-    /// Boundaries between the envelope's parabolas, in f64: they must order exactly against
-    /// the integers.
-    z: Vec<f64>,
-}
-
-impl Envelope {
-    fn new(n: usize) -> Self {
-        Envelope {
-            v: vec![0; n],
-            z: vec![0.0; n + 1],
-        }
-    }
-
-    /// `out[q] = min_p f[p] + (q − p)²`.
-    fn transform(&mut self, f: &[f32], out: &mut [f32]) {
-        let n = f.len();
-        let Some(first) = f.iter().position(|v| v.is_finite()) else {
-            out.fill(f32::INFINITY);
-            return;
-        };
-        let (v, z) = (&mut self.v, &mut self.z);
-        let mut k = 0;
-        v[0] = first;
-        z[0] = f64::NEG_INFINITY;
-        z[1] = f64::INFINITY;
-        for q in first + 1..n {
-            if !f[q].is_finite() {
-                continue;
-            }
-            // z[0] is −∞, so the search stops at k = 0 at the latest.
-            let mut s;
-            loop {
-                let p = v[k];
-                s = ((f[q] as f64 + (q * q) as f64) - (f[p] as f64 + (p * p) as f64))
-                    / (2.0 * (q as f64 - p as f64));
-                if s > z[k] {
-                    break;
-                }
-                k -= 1;
-            }
-            k += 1;
-            v[k] = q;
-            z[k] = s;
-            z[k + 1] = f64::INFINITY;
-        }
-        let mut k = 0;
-        for (q, o) in out.iter_mut().enumerate() {
-            while z[k + 1] < q as f64 {
-                k += 1;
-            }
-            let p = v[k];
-            let dq = q as f32 - p as f32;
-            *o = dq * dq + f[p];
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::world::map::MapParams;
     use proptest::prelude::*;
+
+    impl Level {
+        /// The stored value of cell `k`, when in the grid.
+        fn at(&self, k: VoxelKey) -> Option<u16> {
+            let c = [0, 1, 2].map(|a| k[a] - self.lo[a]);
+            (0..3)
+                .all(|a| c[a] >= 0 && (c[a] as usize) < self.dims[a])
+                .then(|| self.get(c.map(|v| v as usize)))
+        }
+
+        /// Every cell's key and stored value.
+        fn cells(&self) -> impl Iterator<Item = (VoxelKey, u16)> + '_ {
+            let d = self.dims;
+            (0..d[0] * d[1] * d[2]).map(move |i| {
+                let c = [i / (d[1] * d[2]), i / d[2] % d[1], i % d[2]];
+                ([0, 1, 2].map(|a| c[a] as i32 + self.lo[a]), self.get(c))
+            })
+        }
+    }
 
     fn map_of(voxels: &[[i32; 3]]) -> OccupancyMap {
         let mut map = OccupancyMap::new(MapParams::default());
@@ -364,10 +574,7 @@ mod tests {
         let map = map_of(&[[0, 0, 0], [5, 0, 0]]);
         let c = Clearance::of(&map, 0.2).unwrap();
         let g = &c.fine;
-        let at = |k: [i32; 3]| {
-            let cell = [0, 1, 2].map(|a| (k[a] - g.lo[a]) as usize);
-            g.cells[(cell[0] * g.dims[1] + cell[1]) * g.dims[2] + cell[2]] as f64 / STEPS
-        };
+        let at = |k: [i32; 3]| g.at(k).unwrap() as f64 / STEPS;
         assert_eq!(at([0, 0, 0]), 0.0);
         assert_eq!(at([2, 0, 0]), 2.0);
         assert_eq!(at([3, 0, 0]), 2.0);
@@ -392,9 +599,7 @@ mod tests {
             }
             // Every cell holds the brute-force distance (rounded down, saturated).
             let g = &c.fine;
-            for (i, &cell) in g.cells.iter().enumerate() {
-                let at = [i / (g.dims[1] * g.dims[2]), i / g.dims[2] % g.dims[1], i % g.dims[2]];
-                let k = [0, 1, 2].map(|a| at[a] as i32 + g.lo[a]);
+            for (k, cell) in g.cells() {
                 let d2 = voxels
                     .iter()
                     .map(|v| (0..3).map(|a| ((v[a] - k[a]) as f64).powi(2)).sum::<f64>())
@@ -404,6 +609,47 @@ mod tests {
             }
             // The grid is not vacuous: far or small balls are cleared.
             prop_assert!(c.clear([5.0, 5.0, 5.0], 0.1));
+        }
+
+        /// Grids updated around the changes hold what grids built anew hold, cell for cell,
+        /// whether the changes add or clear voxels, inside the grids' cover or past it.
+        #[test]
+        fn updated_grids_equal_grids_built_anew(
+            first in prop::collection::vec(prop::array::uniform3(-12i32..12), 1..40),
+            rounds in prop::collection::vec(
+                prop::collection::vec((prop::array::uniform3(-40i32..40), any::<bool>()), 1..12),
+                1..5,
+            ),
+        ) {
+            let mut map = map_of(&first);
+            map.refresh_clearance();
+            for round in rounds {
+                for (k, occupied) in round {
+                    map.set_voxel(k, occupied);
+                }
+                map.refresh_clearance();
+                let fresh = Clearance::of(&map, super::super::CLEARANCE_PAD);
+                let updated = map.clearance();
+                let (Some(fresh), Some(updated)) = (fresh, updated) else {
+                    prop_assert!(!map.has_occupied());
+                    continue;
+                };
+                for (f, u) in [(&fresh.fine, &updated.fine), (&fresh.coarse, &updated.coarse)] {
+                    for (k, want) in f.cells() {
+                        prop_assert_eq!(u.at(k), Some(want), "cell {:?}", k);
+                    }
+                    // Past the fresh grid, the updated one is saturated.
+                    for (k, got) in u.cells() {
+                        if f.at(k).is_none() {
+                            prop_assert_eq!(got, u.cap(), "cell {:?}", k);
+                        }
+                    }
+                }
+                for a in 0..3 {
+                    prop_assert!(updated.occupied_lo[a] <= fresh.occupied_lo[a]);
+                    prop_assert!(updated.occupied_hi[a] >= fresh.occupied_hi[a]);
+                }
+            }
         }
     }
 }

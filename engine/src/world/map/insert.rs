@@ -9,8 +9,8 @@
 //! per endpoint voxel is traced, to the voxel's centre, exactly as OctoMap's `discretize`:
 //! points are snapped to their voxel centres and de-duplicated before the range is applied
 //! (faster, a little less free space carved next to surfaces).
-//! Marks live in per-block bit masks and block indices in a dense per-cloud table, so the inner
-//! loop does no hashing.
+//! Marks live in the insertion's own per-block bit masks (slots in a dense per-cloud table), so
+//! the map is written only where leaves change and the inner loop does no hashing.
 
 use super::{bits, BlockKey, Leaves, OccupancyMap, VoxelKey};
 use crate::robot::spheres::PlacedSpheres;
@@ -53,20 +53,34 @@ pub struct InsertReport {
     pub changed: Vec<BlockKey>,
 }
 
-/// Marks cells into per-block scratch masks, remembering which blocks were touched.
-struct Marker<'m> {
-    map: &'m mut OccupancyMap,
-    touched: Vec<u32>,
-    /// Dense table of block indices over the cloud's bounding box (`u32::MAX`: not looked up
+/// One block's marks in the cloud being inserted.
+#[derive(Clone, Copy)]
+struct Marks {
+    key: BlockKey,
+    /// Leaves hit.
+    hit: u64,
+    /// Leaves passed through.
+    free: u64,
+    /// Leaves some ray was already cast to.
+    end: u64,
+}
+
+/// Marks cells into per-block masks of its own (the map is not written until the cloud is
+/// folded in, and then only blocks whose leaves change).
+struct Marker {
+    marks: Vec<Marks>,
+    /// Dense table of slots in `marks` over the cloud's bounding box (`u32::MAX`: not marked
     /// yet), so a cell's block costs an array access instead of a hash lookup.
     grid: Vec<u32>,
     grid_lo: BlockKey,
     grid_dims: [i32; 3],
+    /// Slots of blocks outside the dense table.
+    others: rustc_hash::FxHashMap<BlockKey, u32>,
     lo: VoxelKey,
     hi: VoxelKey,
 }
 
-impl Marker<'_> {
+impl Marker {
     /// Marks the end voxel of a ray (a hit when `hit`); true when no ray was cast to it yet.
     #[inline]
     fn mark_end(&mut self, k: VoxelKey, hit: bool) -> bool {
@@ -75,45 +89,47 @@ impl Marker<'_> {
             return true;
         }
         let (b, bit) = OccupancyMap::split(k);
-        let blk = self.block(b);
-        let first = blk.scan_end & (1 << bit) == 0;
-        blk.scan_end |= 1 << bit;
+        let m = self.block(b);
+        let first = m.end & (1 << bit) == 0;
+        m.end |= 1 << bit;
         if hit {
-            blk.scan_hit |= 1 << bit;
+            m.hit |= 1 << bit;
         }
         first
     }
 
-    /// The block with key `b`, created when missing and registered as touched.
+    /// The marks of the block with key `b`.
     #[inline(always)]
-    fn block(&mut self, b: BlockKey) -> &mut super::Block {
-        let i = self.block_idx(b);
-        &mut self.map.blocks[i as usize]
+    fn block(&mut self, b: BlockKey) -> &mut Marks {
+        let i = self.slot(b);
+        &mut self.marks[i as usize]
     }
 
-    /// Index of the block with key `b`, created when missing and registered as touched.
+    /// Slot in `marks` of the block with key `b`, added when missing.
     #[inline(always)]
-    fn block_idx(&mut self, b: BlockKey) -> u32 {
+    fn slot(&mut self, b: BlockKey) -> u32 {
         let r = [0, 1, 2].map(|a| b[a] - self.grid_lo[a]);
         let inside = (0..3).all(|a| r[a] >= 0 && r[a] < self.grid_dims[a]);
-        let i = if inside {
-            let slot = ((r[0] * self.grid_dims[1] + r[1]) * self.grid_dims[2] + r[2]) as usize;
-            match self.grid[slot] {
-                u32::MAX => {
-                    let i = self.map.block_index(b);
-                    self.grid[slot] = i;
-                    i
-                }
-                i => i,
+        let next = self.marks.len() as u32;
+        let slot = if inside {
+            let at = ((r[0] * self.grid_dims[1] + r[1]) * self.grid_dims[2] + r[2]) as usize;
+            let s = &mut self.grid[at];
+            if *s == u32::MAX {
+                *s = next;
             }
+            *s
         } else {
-            self.map.block_index(b)
+            *self.others.entry(b).or_insert(next)
         };
-        let blk = &self.map.blocks[i as usize];
-        if blk.scan_hit | blk.scan_free | blk.scan_end == 0 {
-            self.touched.push(i);
+        if slot == next {
+            self.marks.push(Marks {
+                key: b,
+                hit: 0,
+                free: 0,
+                end: 0,
+            });
         }
-        i
+        slot
     }
 
     /// Marks a passed cell; false when this cloud had passed it already.
@@ -123,9 +139,9 @@ impl Marker<'_> {
             return true;
         }
         let (b, bit) = OccupancyMap::split(k);
-        let blk = self.block(b);
-        let new = blk.scan_free & (1 << bit) == 0;
-        blk.scan_free |= 1 << bit;
+        let m = self.block(b);
+        let new = m.free & (1 << bit) == 0;
+        m.free |= 1 << bit;
         new
     }
 
@@ -177,7 +193,7 @@ impl Marker<'_> {
         // The in-block offset at which a step along each axis enters the next block.
         let wrap = step.map(|v| if v > 0 { 0 } else { 3 });
         let mut block = if unbounded {
-            self.block_idx([x >> 2, y >> 2, z >> 2])
+            self.slot([x >> 2, y >> 2, z >> 2])
         } else {
             0
         };
@@ -202,13 +218,13 @@ impl Marker<'_> {
             };
             let newly = if unbounded {
                 if crossed {
-                    block = self.block_idx([x >> 2, y >> 2, z >> 2]);
+                    block = self.slot([x >> 2, y >> 2, z >> 2]);
                 }
                 let bit = ((x & 3) << 4) | ((y & 3) << 2) | (z & 3);
-                let blk = &mut self.map.blocks[block as usize];
+                let marks = &mut self.marks[block as usize];
                 let m = 1u64 << bit;
-                let new = blk.scan_free & m == 0;
-                blk.scan_free |= m;
+                let new = marks.free & m == 0;
+                marks.free |= m;
                 new
             } else {
                 self.mark_free([x, y, z])
@@ -289,7 +305,6 @@ impl OccupancyMap {
         sensor_pose: &Pose,
         mask: &CloudMask,
     ) -> InsertReport {
-        self.changed();
         let mut report = InsertReport {
             points: points.len(),
             ..Default::default()
@@ -373,15 +388,15 @@ impl OccupancyMap {
         };
         // Pass 2: hits, then rays.
         let mut marker = Marker {
-            map: self,
-            touched: Vec::new(),
+            marks: Vec::new(),
             grid,
             grid_lo: lo_b,
             grid_dims,
+            others: Default::default(),
             lo,
             hi,
         };
-        let ko = marker.map.key_of(o);
+        let ko = self.key_of(o);
         for &(end, ke, hit) in &ends {
             // Discretized ends beyond the range were de-duplicated by their own voxel already.
             if marker.mark_end(ke, hit) || (discretize && !hit) {
@@ -391,30 +406,32 @@ impl OccupancyMap {
                 marker.ray(o, ko, end, ke, res, STOP_AFTER);
             }
         }
-        let touched = std::mem::take(&mut marker.touched);
-        self.apply(&touched, &mut report.changed);
+        self.apply(&marker.marks, &mut report.changed);
         report
     }
 
-    /// Folds the scratch masks of the touched blocks into the leaves.
-    fn apply(&mut self, touched: &[u32], changed: &mut Vec<BlockKey>) {
+    /// Folds the marks of a cloud into the leaves (creating the blocks first marked).
+    fn apply(&mut self, marks: &[Marks], changed: &mut Vec<BlockKey>) {
         let (hit_l, miss_l, min, max, threshold) =
             (self.hit, self.miss, self.min, self.max, self.threshold);
-        for &i in touched {
-            let blk = &mut self.blocks[i as usize];
-            let hit = blk.scan_hit;
-            let free = blk.scan_free & !hit;
-            blk.scan_hit = 0;
-            blk.scan_free = 0;
-            blk.scan_end = 0;
-            // Saturated free space stays saturated under more misses.
-            if hit == 0 {
-                if let Leaves::Uniform(v) = blk.leaves {
-                    if v <= min {
-                        continue;
+        for m in marks {
+            let hit = m.hit;
+            let free = m.free & !hit;
+            let i = match self.index.get(&m.key) {
+                Some(&i) => {
+                    // Saturated free space stays saturated under more misses.
+                    if hit == 0 {
+                        if let Leaves::Uniform(v) = self.blocks[i as usize].leaves {
+                            if v <= min {
+                                continue;
+                            }
+                        }
                     }
+                    i
                 }
-            }
+                None => self.block_index(m.key),
+            };
+            let blk = self.blocks.get_mut(i);
             let known = blk.known;
             let before = blk.occupied;
             let leaves = blk.expand();

@@ -13,7 +13,8 @@
 //! [`PlacedSpheres`](crate::robot::spheres::PlacedSpheres)), `bt_file.rs` (OctoMap's binary
 //! `.bt` format).
 //!
-//! A block is stored as `Block` (leaves and per-cloud scratch); what the map shows of it is an
+//! A block is stored as `Block` (leaves and masks), in chunks that copies of the map share; what
+//! the map shows of it is an
 //! [`Octobox`] (key and occupancy mask), which is also FLAME's local primitive.
 
 mod bt_file;
@@ -25,6 +26,7 @@ pub use clearance::Clearance;
 pub use insert::{CloudMask, InsertReport};
 
 use rustc_hash::FxHashMap;
+use std::sync::Arc;
 
 /// Integer voxel coordinates: `floor(coordinate / resolution)` per axis.
 pub type VoxelKey = [i32; 3];
@@ -104,11 +106,6 @@ pub(crate) struct Block {
     pub(crate) known: u64,
     /// Leaves above the occupancy threshold.
     pub(crate) occupied: u64,
-    /// Per-cloud scratch: leaves hit and leaves passed through in the cloud being inserted.
-    pub(crate) scan_hit: u64,
-    pub(crate) scan_free: u64,
-    /// Per-cloud scratch: leaves some ray was already cast to.
-    pub(crate) scan_end: u64,
 }
 
 impl Block {
@@ -118,9 +115,6 @@ impl Block {
             leaves: Leaves::Each(Box::new([0.0; 64])),
             known: 0,
             occupied: 0,
-            scan_hit: 0,
-            scan_free: 0,
-            scan_end: 0,
         }
     }
 
@@ -129,6 +123,53 @@ impl Block {
             Leaves::Uniform(v) => *v,
             Leaves::Each(a) => a[bit],
         }
+    }
+}
+
+/// Blocks stored in chunks that copies of the map share: copying the map copies no block, and
+/// a write copies only the chunk it lands in (when another copy still holds it).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Blocks {
+    chunks: Vec<Arc<Vec<Block>>>,
+    len: usize,
+}
+
+/// Blocks per chunk.
+const CHUNK: usize = 256;
+
+impl Blocks {
+    pub(crate) fn len(&self) -> usize {
+        self.len
+    }
+
+    /// The block at `i`, for writing.
+    #[inline]
+    pub(crate) fn get_mut(&mut self, i: u32) -> &mut Block {
+        let i = i as usize;
+        &mut Arc::make_mut(&mut self.chunks[i / CHUNK])[i % CHUNK]
+    }
+
+    /// Appends a block; returns its index.
+    fn push(&mut self, b: Block) -> u32 {
+        if self.len.is_multiple_of(CHUNK) {
+            self.chunks.push(Arc::new(Vec::with_capacity(CHUNK)));
+        }
+        let last = self.chunks.last_mut().expect("pushed above");
+        Arc::make_mut(last).push(b);
+        self.len += 1;
+        (self.len - 1) as u32
+    }
+
+    fn iter(&self) -> impl Iterator<Item = &Block> {
+        self.chunks.iter().flat_map(|c| c.iter())
+    }
+}
+
+impl std::ops::Index<usize> for Blocks {
+    type Output = Block;
+    #[inline]
+    fn index(&self, i: usize) -> &Block {
+        &self.chunks[i / CHUNK][i % CHUNK]
     }
 }
 
@@ -150,14 +191,20 @@ pub struct OccupancyMap {
     pub(crate) min: f32,
     pub(crate) max: f32,
     pub(crate) threshold: f32,
-    pub(crate) blocks: Vec<Block>,
+    pub(crate) blocks: Blocks,
     pub(crate) index: FxHashMap<BlockKey, u32>,
     /// Per 4×4×4 group of blocks (16³ leaves): how many of its blocks hold an occupied leaf.
     /// The broad phase of [`OccupancyMap::sphere_collides`].
     coarse: FxHashMap<BlockKey, u32>,
-    /// The clearance grid of the current state, built on first use after a change.
-    clearance: std::sync::OnceLock<Option<Clearance>>,
+    /// The clearance grids of the current state, built on first use after a change (or
+    /// brought up to date by [`OccupancyMap::refresh_clearance`]).
+    clearance: std::sync::OnceLock<Option<Arc<Clearance>>>,
+    /// The last grids built and the blocks whose occupancy changed since (`None`: build anew).
+    stale: Option<(Arc<Clearance>, Vec<BlockKey>)>,
 }
+
+/// Past this many changed blocks the clearance grids are built anew rather than updated.
+const STALE_MAX: usize = 1 << 16;
 
 /// How far the clearance grid reaches beyond the occupied voxels, metres: balls larger than
 /// this near the map are decided exactly.
@@ -179,10 +226,11 @@ impl OccupancyMap {
             max: logit(params.clamp_max),
             threshold: logit(params.occupancy_threshold),
             params,
-            blocks: Vec::new(),
+            blocks: Blocks::default(),
             index: FxHashMap::default(),
             coarse: FxHashMap::default(),
             clearance: Default::default(),
+            stale: None,
         }
     }
 
@@ -190,18 +238,31 @@ impl OccupancyMap {
     /// `None` when nothing is occupied or the map is spread too wide for a grid).
     pub fn clearance(&self) -> Option<&Clearance> {
         self.clearance
-            .get_or_init(|| Clearance::of(self, CLEARANCE_PAD))
-            .as_ref()
+            .get_or_init(|| Clearance::of(self, CLEARANCE_PAD).map(Arc::new))
+            .as_deref()
+    }
+
+    /// Brings the clearance grids up to date, recomputing them only around the blocks whose
+    /// occupancy changed since they were last built (the ingest's per-cloud cost then follows
+    /// what the cloud changed, not the map's size).
+    pub fn refresh_clearance(&mut self) {
+        if self.clearance.get().is_some() {
+            return;
+        }
+        if let Some((mut grids, changed)) = self.stale.take() {
+            if Arc::make_mut(&mut grids).update(self, &changed) {
+                let _ = self.clearance.set(Some(grids));
+                return;
+            }
+        }
+        let _ = self
+            .clearance
+            .set(Clearance::of(self, CLEARANCE_PAD).map(Arc::new));
     }
 
     /// True when some voxel is occupied.
     pub fn has_occupied(&self) -> bool {
         !self.coarse.is_empty()
-    }
-
-    /// Forgets derived state after a change.
-    pub(crate) fn changed(&mut self) {
-        self.clearance = Default::default();
     }
 
     /// The settings.
@@ -352,7 +413,7 @@ impl OccupancyMap {
                 Leaves::Uniform(_) => 0,
             })
             .sum();
-        self.blocks.capacity() * per_block
+        self.blocks.chunks.len() * CHUNK * per_block
             + leaves
             + self.index.capacity() * (std::mem::size_of::<(BlockKey, u32)>() + 1)
     }
@@ -389,11 +450,31 @@ impl OccupancyMap {
         hi: [f64; 3],
         mut f: impl FnMut([f64; 3]) -> bool,
     ) -> bool {
+        let lo = self.key_of(lo).map(|v| v >> 2);
+        let hi = self.key_of(hi).map(|v| v >> 2);
+        self.occupied_blocks(lo, hi, |b, mask| {
+            bits(mask).any(|bit| {
+                f(self.voxel_center([
+                    b[0] * 4 + (bit / 16) as i32,
+                    b[1] * 4 + (bit / 4 % 4) as i32,
+                    b[2] * 4 + (bit % 4) as i32,
+                ]))
+            })
+        })
+    }
+
+    /// Calls `f` with the key and occupancy mask of each block in `[lo, hi]` (block keys) that
+    /// holds an occupied voxel until it returns true; returns whether it did. The coarse index
+    /// skips empty regions.
+    pub(crate) fn occupied_blocks(
+        &self,
+        lo: BlockKey,
+        hi: BlockKey,
+        mut f: impl FnMut(BlockKey, u64) -> bool,
+    ) -> bool {
         if self.coarse.is_empty() {
             return false;
         }
-        let lo = self.key_of(lo).map(|v| v >> 2);
-        let hi = self.key_of(hi).map(|v| v >> 2);
         for gx in (lo[0] >> 2)..=(hi[0] >> 2) {
             for gy in (lo[1] >> 2)..=(hi[1] >> 2) {
                 for gz in (lo[2] >> 2)..=(hi[2] >> 2) {
@@ -406,15 +487,9 @@ impl OccupancyMap {
                                 let Some(&i) = self.index.get(&[bx, by, bz]) else {
                                     continue;
                                 };
-                                for bit in bits(self.blocks[i as usize].occupied) {
-                                    let k = [
-                                        bx * 4 + (bit / 16) as i32,
-                                        by * 4 + (bit / 4 % 4) as i32,
-                                        bz * 4 + (bit % 4) as i32,
-                                    ];
-                                    if f(self.voxel_center(k)) {
-                                        return true;
-                                    }
+                                let mask = self.blocks[i as usize].occupied;
+                                if mask != 0 && f([bx, by, bz], mask) {
+                                    return true;
                                 }
                             }
                         }
@@ -425,8 +500,24 @@ impl OccupancyMap {
         false
     }
 
-    /// Keeps the coarse broad-phase counts when a block's mask goes between empty and not.
+    /// Keeps the coarse broad-phase counts when a block's mask goes between empty and not, and
+    /// the clearance grids' list of changed blocks.
     pub(crate) fn note_mask_change(&mut self, b: BlockKey, before: u64, after: u64) {
+        if before == after {
+            return;
+        }
+        match self.clearance.take() {
+            Some(Some(grids)) => self.stale = Some((grids, vec![b])),
+            Some(None) => self.stale = None,
+            None => {
+                if let Some((_, changed)) = &mut self.stale {
+                    changed.push(b);
+                    if changed.len() > STALE_MAX {
+                        self.stale = None;
+                    }
+                }
+            }
+        }
         let g = b.map(|v| v >> 2);
         match (before != 0, after != 0) {
             (false, true) => *self.coarse.entry(g).or_insert(0) += 1,
@@ -471,7 +562,6 @@ impl OccupancyMap {
     }
 
     fn set_logodds(&mut self, k: VoxelKey, v: f32) {
-        self.changed();
         let (b, bit) = Self::split(k);
         let threshold = self.threshold;
         let blk = self.block_mut(b);
@@ -490,7 +580,7 @@ impl OccupancyMap {
 
     pub(crate) fn block_mut(&mut self, b: BlockKey) -> &mut Block {
         let i = self.block_index(b);
-        &mut self.blocks[i as usize]
+        self.blocks.get_mut(i)
     }
 
     /// Index of block `b`, created empty when missing.
@@ -498,8 +588,7 @@ impl OccupancyMap {
         match self.index.get(&b) {
             Some(&i) => i,
             None => {
-                let i = self.blocks.len() as u32;
-                self.blocks.push(Block::new(b));
+                let i = self.blocks.push(Block::new(b));
                 self.index.insert(b, i);
                 i
             }
@@ -508,7 +597,12 @@ impl OccupancyMap {
 
     /// Compacts blocks whose leaves are all known and equal.
     pub fn compact(&mut self) {
-        for blk in &mut self.blocks {
+        for blk in self
+            .blocks
+            .chunks
+            .iter_mut()
+            .flat_map(|c| Arc::make_mut(c).iter_mut())
+        {
             if let Leaves::Each(a) = &blk.leaves {
                 if blk.known == u64::MAX && a.iter().all(|v| *v == a[0]) {
                     blk.leaves = Leaves::Uniform(a[0]);
