@@ -6,7 +6,11 @@
 //! scene's objects but the point cloud `DIR/<set>/cloudNNNN.pcd` (ASCII PCD, x y z in the base
 //! frame, as the VAMP peer writes them), its points marked occupied in an occupancy map at
 //! `--cloud-resolution` (default 0.01 m); problems without a cloud are skipped (VAMP found
-//! them invalid). For each folder prints success, refusals and
+//! them invalid). `--map-compare` (with `--clouds`) plans each problem twice on the same scene:
+//! against its objects alone (map off) and against the objects with the cloud's map (map on, as
+//! emberd plans with `planner.use_map`); the `RESULT plan` line is then the map-on run (key
+//! `objects=1`), followed by `RESULT plan_map set= n= solved_off= solved_on= off_median_ms=
+//! on_median_ms= ratio=`. For each folder prints success, refusals and
 //! planning-time statistics (planning = IK + search; simplification and the exact validation
 //! reported apart) and ends with `RESULT plan set=<folder> n=<problems> solved=<count>
 //! median_ms=<f> mean_ms=<f> p95_ms=<f> start_refused=<k> goal_refused=<k>
@@ -17,7 +21,7 @@
 use ember_engine::planning::PlanError;
 use ember_engine::planning::{self, PlanRequest, PlannerParams, UniformSampler};
 use ember_engine::problems::ProblemSet;
-use ember_engine::robot::RobotArgs;
+use ember_engine::robot::{Robot, RobotArgs};
 use ember_engine::world::map::{MapParams, OccupancyMap};
 use ember_engine::world::Environment;
 use ember_sdk::stats::summary;
@@ -51,9 +55,17 @@ pub struct Args {
     /// Voxel size of the map built from each cloud, metres.
     #[arg(long, default_value_t = 0.01)]
     cloud_resolution: f64,
+    /// With `--clouds`: plan each problem against the scene's objects alone (map off) and
+    /// against the objects with the cloud's map (map on, as emberd with `use_map`).
+    #[arg(long)]
+    map_compare: bool,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        !args.map_compare || args.clouds.is_some(),
+        "--map-compare needs --clouds"
+    );
     let mut results = Vec::new();
     println!(
         "{:<24} {:>4} {:>6} {:>6} {:>6} {:>10} {:>10} {:>10} {:>11} {:>11}",
@@ -77,12 +89,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             _ => spec.load()?,
         };
         let set = ProblemSet::load(dir, &robot)?;
-        let mut times = Vec::new();
-        let mut simplify = Vec::new();
-        let mut validate = Vec::new();
-        let (mut solved, mut start_refused, mut goal_refused) = (0, 0, 0);
-        let mut split = Split::default();
-        let (mut iterations, mut nodes) = (Vec::new(), Vec::new());
+        // With --map-compare: the scene's objects alone, and with the cloud's map added.
+        let mut tally = Tally::default();
+        let mut objects_only = Tally::default();
         let mut map_ms = Vec::new();
         for p in &set.problems {
             let env = match &args.clouds {
@@ -93,8 +102,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                         continue;
                     }
                     let t = Instant::now();
-                    let env = cloud_environment(&file, args.cloud_resolution)?;
+                    let map = cloud_map(&file, args.cloud_resolution)?;
                     map_ms.push(t.elapsed().as_secs_f64() * 1e3);
+                    let mut env = if args.map_compare {
+                        p.scene.environment()?
+                    } else {
+                        Environment::new()
+                    };
+                    env.set_map(Some(map));
                     env
                 }
             };
@@ -110,55 +125,35 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     ..Default::default()
                 },
             };
-            let t = Instant::now();
-            match planning::plan(&robot, &env, &req, &mut UniformSampler) {
-                Ok(res) => {
-                    let total = t.elapsed().as_secs_f64();
-                    solved += 1;
-                    times.push((total - res.stats.simplify_s - res.stats.validate_s) * 1e3);
-                    simplify.push(res.stats.simplify_s * 1e3);
-                    validate.push(res.stats.validate_s * 1e3);
-                    split.add(&res.stats);
-                    iterations.push(res.stats.iterations as f64);
-                    nodes.push(res.stats.tree_nodes as f64);
-                }
-                Err(e) => {
-                    match e {
-                        PlanError::StartInCollision(_) => start_refused += 1,
-                        PlanError::GoalInCollision(_) => goal_refused += 1,
-                        _ => {}
-                    }
-                    times.push(args.time_limit * 1e3)
-                }
+            if args.map_compare {
+                objects_only.plan(&robot, &p.scene.environment()?, &req, args.time_limit);
             }
+            tally.plan(&robot, &env, &req, args.time_limit);
         }
-        let n = times.len();
-        let (median, mean, p95) = summary(&mut times);
         let cloud_keys = if args.clouds.is_some() {
             let (map_median, _, _) = summary(&mut map_ms);
             format!(
-                " clouds=1 cloud_resolution={} map_build_ms={map_median:.3}",
-                args.cloud_resolution
+                " clouds=1 cloud_resolution={} map_build_ms={map_median:.3}{}",
+                args.cloud_resolution,
+                if args.map_compare { " objects=1" } else { "" }
             )
         } else {
             String::new()
         };
-        let (simp, _, _) = summary(&mut simplify);
-        let (val, _, _) = summary(&mut validate);
-        let (median_iterations, _, _) = summary(&mut iterations);
-        let (median_nodes, _, _) = summary(&mut nodes);
-        println!(
-            "{:<24} {:>4} {:>6} {:>6} {:>6} {:>10.3} {:>10.3} {:>10.3} {:>11.3} {:>11.3}",
-            set.name, n, solved, start_refused, goal_refused, median, mean, p95, simp, val
-        );
-        results.push(format!(
-            "RESULT plan set={} n={n} solved={solved} median_ms={median:.3} mean_ms={mean:.3} \
-             p95_ms={p95:.3} start_refused={start_refused} goal_refused={goal_refused} \
-             simplify_ms={simp:.3} validate_ms={val:.3} median_iterations={median_iterations:.0} \
-             median_nodes={median_nodes:.0} {}{cloud_keys}",
-            set.name,
-            split.keys()
-        ));
+        results.push(tally.result(&set.name, &cloud_keys));
+        if args.map_compare {
+            let (off, _, _) = summary(&mut objects_only.times.clone());
+            let (on, _, _) = summary(&mut tally.times.clone());
+            results.push(format!(
+                "RESULT plan_map set={} n={} solved_off={} solved_on={} off_median_ms={off:.3} \
+                 on_median_ms={on:.3} ratio={:.3}",
+                set.name,
+                tally.times.len(),
+                objects_only.solved,
+                tally.solved,
+                on / off.max(1e-9)
+            ));
+        }
         loaded = Some((spec.robot.clone(), robot));
     }
     for line in results {
@@ -167,9 +162,74 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// An environment holding only the points of an ASCII PCD file (x y z first), as occupied
-/// voxels of a map with the clearance grid built (map building is not planning time).
-fn cloud_environment(file: &Path, resolution: f64) -> anyhow::Result<Environment> {
+/// The outcomes of one set's problems.
+#[derive(Default)]
+struct Tally {
+    times: Vec<f64>,
+    simplify: Vec<f64>,
+    validate: Vec<f64>,
+    solved: usize,
+    start_refused: usize,
+    goal_refused: usize,
+    split: Split,
+    iterations: Vec<f64>,
+    nodes: Vec<f64>,
+}
+
+impl Tally {
+    /// Plans one request and counts the outcome (a failure as the time limit).
+    fn plan(&mut self, robot: &Robot, env: &Environment, req: &PlanRequest, time_limit: f64) {
+        let t = Instant::now();
+        match planning::plan(robot, env, req, &mut UniformSampler) {
+            Ok(res) => {
+                let total = t.elapsed().as_secs_f64();
+                self.solved += 1;
+                self.times
+                    .push((total - res.stats.simplify_s - res.stats.validate_s) * 1e3);
+                self.simplify.push(res.stats.simplify_s * 1e3);
+                self.validate.push(res.stats.validate_s * 1e3);
+                self.split.add(&res.stats);
+                self.iterations.push(res.stats.iterations as f64);
+                self.nodes.push(res.stats.tree_nodes as f64);
+            }
+            Err(e) => {
+                match e {
+                    PlanError::StartInCollision(_) => self.start_refused += 1,
+                    PlanError::GoalInCollision(_) => self.goal_refused += 1,
+                    _ => {}
+                }
+                self.times.push(time_limit * 1e3)
+            }
+        }
+    }
+
+    /// Prints the set's row and returns its `RESULT plan` line.
+    fn result(&self, set: &str, extra: &str) -> String {
+        let n = self.times.len();
+        let (median, mean, p95) = summary(&mut self.times.clone());
+        let (simp, _, _) = summary(&mut self.simplify.clone());
+        let (val, _, _) = summary(&mut self.validate.clone());
+        let (median_iterations, _, _) = summary(&mut self.iterations.clone());
+        let (median_nodes, _, _) = summary(&mut self.nodes.clone());
+        let (solved, start_refused, goal_refused) =
+            (self.solved, self.start_refused, self.goal_refused);
+        println!(
+            "{:<24} {:>4} {:>6} {:>6} {:>6} {:>10.3} {:>10.3} {:>10.3} {:>11.3} {:>11.3}",
+            set, n, solved, start_refused, goal_refused, median, mean, p95, simp, val
+        );
+        format!(
+            "RESULT plan set={set} n={n} solved={solved} median_ms={median:.3} mean_ms={mean:.3} \
+             p95_ms={p95:.3} start_refused={start_refused} goal_refused={goal_refused} \
+             simplify_ms={simp:.3} validate_ms={val:.3} median_iterations={median_iterations:.0} \
+             median_nodes={median_nodes:.0} {}{extra}",
+            self.split.keys()
+        )
+    }
+}
+
+/// The points of an ASCII PCD file (x y z first) as occupied voxels of a map, with its
+/// clearance grid built (map building is not planning time).
+fn cloud_map(file: &Path, resolution: f64) -> anyhow::Result<Arc<OccupancyMap>> {
     let text = std::fs::read_to_string(file)?;
     let mut map = OccupancyMap::new(MapParams {
         resolution,
@@ -193,9 +253,7 @@ fn cloud_environment(file: &Path, resolution: f64) -> anyhow::Result<Environment
         }
     }
     map.clearance();
-    let mut env = Environment::new();
-    env.set_map(Some(Arc::new(map)));
-    Ok(env)
+    Ok(Arc::new(map))
 }
 
 /// Where the search time of the solved problems went, summed over the set.
