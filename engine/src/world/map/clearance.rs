@@ -464,7 +464,7 @@ impl Level {
 /// has its nearest key within `pad` along every axis. The first pass (along `z`, on the bare
 /// keys) counts cells to the nearest key; the others take, row by row, the minimum of the
 /// `2·pad + 1` neighbouring rows each raised by its squared offset, over whole contiguous
-/// rows at once (which vectorises).
+/// rows at once (which vectorises), skipping rows nothing finite has reached.
 fn distance_transform(keys: &[VoxelKey], lo: VoxelKey, dims: [usize; 3], pad: f64) -> Vec<u16> {
     let n = dims[0] * dims[1] * dims[2];
     let pad_cells = pad as usize;
@@ -494,35 +494,59 @@ fn distance_transform(keys: &[VoxelKey], lo: VoxelKey, dims: [usize; 3], pad: f6
             *v = if m * m <= far { m * m } else { f32::INFINITY };
         }
     }
-    // Along y (rows of z within each x plane), then along x (whole planes).
+    // Along y, then along x: each row of z takes the minimum over the rows within the padding
+    // along the axis, each raised by its squared offset. Rows with nothing finite (far from
+    // every key so far) are skipped.
+    let rows = dims[0] * dims[1];
+    let mut finite = vec![false; rows];
+    for &line in &lines {
+        finite[line] = true;
+    }
     let mut src = vec![0.0f32; n];
-    let plane = dims[1] * dims[2];
-    for (axis, len, stride) in [(1, dims[1], dims[2]), (0, dims[0], plane)] {
+    let row_of = |x: usize, y: usize| x * dims[1] + y;
+    for axis in [1, 0] {
         src.copy_from_slice(&d);
-        let groups = if axis == 1 { dims[0] } else { 1 };
-        for g in 0..groups {
-            let base = g * plane;
-            for t in 0..len {
-                let out = &mut d[base + t * stride..][..stride];
-                let lo = t.saturating_sub(pad_cells);
-                let hi = (t + pad_cells).min(len - 1);
-                for p in lo..=hi {
+        let mut reached = vec![false; rows];
+        for x in 0..dims[0] {
+            for y in 0..dims[1] {
+                let (t, len) = if axis == 1 {
+                    (y, dims[1])
+                } else {
+                    (x, dims[0])
+                };
+                let at = |p: usize| {
+                    if axis == 1 {
+                        row_of(x, p)
+                    } else {
+                        row_of(p, y)
+                    }
+                };
+                let r = row_of(x, y);
+                let out = &mut d[r * dims[2]..][..dims[2]];
+                for p in t.saturating_sub(pad_cells)..=(t + pad_cells).min(len - 1) {
+                    let q = at(p);
+                    if !finite[q] {
+                        continue;
+                    }
+                    reached[r] = true;
                     if p == t {
                         continue;
                     }
                     let w = ((p as f32) - (t as f32)).powi(2);
-                    let row = &src[base + p * stride..][..stride];
-                    for (o, &v) in out.iter_mut().zip(row) {
+                    for (o, &v) in out.iter_mut().zip(&src[q * dims[2]..][..dims[2]]) {
                         let c = v + w;
                         // A select, not a branch: this is what vectorises.
                         *o = if c < *o { c } else { *o };
                     }
                 }
-                for o in out.iter_mut() {
-                    *o = if *o > far { f32::INFINITY } else { *o };
+                if reached[r] {
+                    for o in out.iter_mut() {
+                        *o = if *o > far { f32::INFINITY } else { *o };
+                    }
                 }
             }
         }
+        finite = reached;
     }
     let cap = (pad * STEPS).min(u16::MAX as f64) as f32;
     d.iter()
