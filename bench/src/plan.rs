@@ -10,7 +10,8 @@
 //! against its objects alone (map off) and against the objects with the cloud's map (map on, as
 //! emberd plans with `planner.use_map`); the `RESULT plan` line is then the map-on run (key
 //! `objects=1`), followed by `RESULT plan_map set= n= solved_off= solved_on= off_median_ms=
-//! on_median_ms= ratio=`. For each folder prints success, refusals and
+//! on_median_ms= ratio= off_check_ns_per_config= on_check_ns_per_config= off_median_iterations=
+//! on_median_iterations=` (the check cost apart from how much harder the voxels make a problem). For each folder prints success, refusals and
 //! planning-time statistics (planning = IK + search; simplification and the exact validation
 //! reported apart) and ends with `RESULT plan set=<folder> n=<problems> solved=<count>
 //! median_ms=<f> mean_ms=<f> p95_ms=<f> start_refused=<k> goal_refused=<k>
@@ -144,14 +145,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         if args.map_compare {
             let (off, _, _) = summary(&mut objects_only.times.clone());
             let (on, _, _) = summary(&mut tally.times.clone());
+            let (off_it, _, _) = summary(&mut objects_only.iterations.clone());
+            let (on_it, _, _) = summary(&mut tally.iterations.clone());
             results.push(format!(
                 "RESULT plan_map set={} n={} solved_off={} solved_on={} off_median_ms={off:.3} \
-                 on_median_ms={on:.3} ratio={:.3}",
+                 on_median_ms={on:.3} ratio={:.3} off_check_ns_per_config={:.1} \
+                 on_check_ns_per_config={:.1} off_median_iterations={off_it:.0} \
+                 on_median_iterations={on_it:.0}",
                 set.name,
                 tally.times.len(),
                 objects_only.solved,
                 tally.solved,
-                on / off.max(1e-9)
+                on / off.max(1e-9),
+                objects_only.split.check_ns_per_config(),
+                tally.split.check_ns_per_config(),
             ));
         }
         loaded = Some((spec.robot.clone(), robot));
@@ -281,6 +288,11 @@ impl Split {
         self.fallbacks += s.exact_fallbacks;
     }
 
+    /// Collision-checking time per configuration checked, ns.
+    fn check_ns_per_config(&self) -> f64 {
+        self.check_s * 1e9 / self.configs.max(1) as f64
+    }
+
     /// `sample_pct check_pct neighbour_pct other_pct` of the search time, ns per checked
     /// configuration, configurations per iteration and exact fallbacks.
     fn keys(&self) -> String {
@@ -293,7 +305,7 @@ impl Split {
             pct(self.check_s),
             pct(self.neighbour_s),
             pct(other.max(0.0)),
-            self.check_s * 1e9 / self.configs.max(1) as f64,
+            self.check_ns_per_config(),
             self.configs as f64 / self.iterations.max(1) as f64,
             self.fallbacks
         )
