@@ -4,7 +4,7 @@
 //! Two grids: the fine one's cells are the map's voxels, the coarse one's its 4×4×4 blocks
 //! (reaching three times as far, for the links' and clusters' larger balls). Each cell holds
 //! the exact Euclidean distance (a separable transform, in cell units) from its centre to the
-//! nearest occupied cell centre, rounded down to 1/32 of a cell and saturated at the grid's
+//! nearest occupied cell centre, rounded down to 1/16 of a cell and saturated at the grid's
 //! padding. A ball at `p` (in cell `q`) with radius `r` is clear of every occupied cell cube
 //! (and so of every occupied voxel) when `d(q) − |p − c(q)| − h ≥ r`, with `h` a cell's half
 //! diagonal: the triangle inequality twice.
@@ -23,7 +23,11 @@ use crate::collision::batch::lanes::{F8, LANES};
 use std::sync::Arc;
 
 /// Distances are stored in these fractions of a voxel.
-const STEPS: f64 = 32.0;
+const STEPS: f64 = 16.0;
+
+/// A stored distance: one byte, so the grids are half as large in the caches (saturating at
+/// 15.9 cells: the padding at the default 2 cm and 1 cm voxels).
+type Cell = u8;
 
 /// Slack of the `f32` queries, metres: far above their rounding at robot scale.
 const F32_SLACK: f32 = 1e-5;
@@ -62,7 +66,7 @@ struct Level {
     dims: [usize; 3],
     /// Bricks per axis.
     bdims: [usize; 3],
-    /// Per brick (`z` fastest, then `y`, then `x`), per cell likewise: distance in 1/32 cells,
+    /// Per brick (`z` fastest, then `y`, then `x`), per cell likewise: distance in 1/16 cells,
     /// saturated.
     bricks: Vec<Arc<Brick>>,
     /// The brick every cell of which is saturated.
@@ -76,7 +80,7 @@ struct Level {
 /// Edge of a brick, cells.
 const BRICK: usize = 8;
 const BRICK_BITS: u32 = 3;
-type Brick = [u16; BRICK * BRICK * BRICK];
+type Brick = [Cell; BRICK * BRICK * BRICK];
 
 /// The coarse grid reaches this many times the fine grid's padding.
 const COARSE_REACH: f64 = 3.0;
@@ -111,7 +115,8 @@ impl Clearance {
         )?;
         let coarse = Level::empty(4.0 * res, COARSE_REACH * pad, cover)?;
         let mut c = Clearance {
-            fine_radius: pad - 2.0 * fine.half_diagonal,
+            // Balls the fine grid can clear: within its saturation.
+            fine_radius: (fine.cap() as f64 / STEPS * res).min(pad) - 2.0 * fine.half_diagonal,
             fine,
             coarse,
             cover,
@@ -290,7 +295,7 @@ impl Level {
     /// cell saturated; `None` past [`MAX_CELLS`].
     fn empty(res: f64, pad: f64, (lo, hi): (VoxelKey, VoxelKey)) -> Option<Self> {
         let pad = (pad / res).ceil().clamp(1.0, 2000.0) as i32;
-        let cap = (pad as f64 * STEPS).min(u16::MAX as f64) as u16;
+        let cap = (pad as f64 * STEPS).min(Cell::MAX as f64) as Cell;
         let mut level = Level {
             res,
             inv_res: 1.0 / res,
@@ -306,7 +311,7 @@ impl Level {
     }
 
     /// Saturated distance in stored units.
-    fn cap(&self) -> u16 {
+    fn cap(&self) -> Cell {
         self.far[0]
     }
 
@@ -328,7 +333,7 @@ impl Level {
 
     /// The stored value of cell `c` (grid coordinates, inside the grid).
     #[inline(always)]
-    fn get(&self, c: [usize; 3]) -> u16 {
+    fn get(&self, c: [usize; 3]) -> Cell {
         let (b, i) = self.locate(c);
         self.bricks[b][i]
     }
@@ -465,7 +470,7 @@ impl Level {
 /// keys) counts cells to the nearest key; the others take, row by row, the minimum of the
 /// `2·pad + 1` neighbouring rows each raised by its squared offset, over whole contiguous
 /// rows at once (which vectorises), skipping rows nothing finite has reached.
-fn distance_transform(keys: &[VoxelKey], lo: VoxelKey, dims: [usize; 3], pad: f64) -> Vec<u16> {
+fn distance_transform(keys: &[VoxelKey], lo: VoxelKey, dims: [usize; 3], pad: f64) -> Vec<Cell> {
     let n = dims[0] * dims[1] * dims[2];
     let pad_cells = pad as usize;
     let far = (pad * pad) as f32;
@@ -548,10 +553,10 @@ fn distance_transform(keys: &[VoxelKey], lo: VoxelKey, dims: [usize; 3], pad: f6
         }
         finite = reached;
     }
-    let cap = (pad * STEPS).min(u16::MAX as f64) as f32;
+    let cap = (pad * STEPS).min(Cell::MAX as f64) as f32;
     d.iter()
         // Rounded down (the cast truncates): a lower bound, to the square root's last bit.
-        .map(|&v| (v.sqrt() * STEPS as f32).min(cap) as u16)
+        .map(|&v| (v.sqrt() * STEPS as f32).min(cap) as Cell)
         .collect()
 }
 
@@ -563,7 +568,7 @@ mod tests {
 
     impl Level {
         /// The stored value of cell `k`, when in the grid.
-        fn at(&self, k: VoxelKey) -> Option<u16> {
+        fn at(&self, k: VoxelKey) -> Option<Cell> {
             let c = [0, 1, 2].map(|a| k[a] - self.lo[a]);
             (0..3)
                 .all(|a| c[a] >= 0 && (c[a] as usize) < self.dims[a])
@@ -571,7 +576,7 @@ mod tests {
         }
 
         /// Every cell's key and stored value.
-        fn cells(&self) -> impl Iterator<Item = (VoxelKey, u16)> + '_ {
+        fn cells(&self) -> impl Iterator<Item = (VoxelKey, Cell)> + '_ {
             let d = self.dims;
             (0..d[0] * d[1] * d[2]).map(move |i| {
                 let c = [i / (d[1] * d[2]), i / d[2] % d[1], i % d[2]];
@@ -628,7 +633,7 @@ mod tests {
                     .iter()
                     .map(|v| (0..3).map(|a| ((v[a] - k[a]) as f64).powi(2)).sum::<f64>())
                     .fold(f64::INFINITY, f64::min);
-                let want = ((d2.sqrt() * STEPS).floor()).min(5.0 * STEPS) as u16;
+                let want = ((d2.sqrt() * STEPS).floor()).min(5.0 * STEPS) as Cell;
                 prop_assert_eq!(cell, want, "cell {:?}", k);
             }
             // The grid is not vacuous: far or small balls are cleared.
