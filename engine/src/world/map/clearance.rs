@@ -143,11 +143,7 @@ impl Clearance {
             |(wlo, whi), keys| {
                 map.occupied_blocks(wlo.map(|v| v >> 2), whi.map(|v| v >> 2), |b, mask| {
                     for bit in super::bits(mask) {
-                        let k = [
-                            b[0] * 4 + (bit / 16) as i32,
-                            b[1] * 4 + (bit / 4 % 4) as i32,
-                            b[2] * 4 + (bit % 4) as i32,
-                        ];
+                        let k = super::voxel_key(b, bit);
                         if (0..3).all(|a| wlo[a] <= k[a] && k[a] <= whi[a]) {
                             keys.push(k);
                         }

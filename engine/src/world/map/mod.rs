@@ -210,6 +210,16 @@ const STALE_MAX: usize = 1 << 16;
 /// this near the map are decided exactly.
 pub const CLEARANCE_PAD: f64 = 0.15;
 
+/// Key of the voxel at bit `bit` of block `b` (the inverse of [`leaf_bit`]).
+#[inline]
+pub(crate) fn voxel_key(b: BlockKey, bit: usize) -> VoxelKey {
+    [
+        b[0] * 4 + (bit / 16) as i32,
+        b[1] * 4 + (bit / 4 % 4) as i32,
+        b[2] * 4 + (bit % 4) as i32,
+    ]
+}
+
 /// Bit of leaf `(x, y, z)` (each 0..4) inside its block.
 #[inline]
 pub fn leaf_bit(x: usize, y: usize, z: usize) -> usize {
@@ -357,13 +367,8 @@ impl OccupancyMap {
     pub fn known_voxels(&self) -> impl Iterator<Item = (VoxelKey, Occupancy)> + '_ {
         self.index.iter().flat_map(move |(b, &i)| {
             let blk = &self.blocks[i as usize];
-            let base = b.map(|v| v * 4);
             bits(blk.known).map(move |bit| {
-                let k = [
-                    base[0] + (bit / 16) as i32,
-                    base[1] + (bit / 4 % 4) as i32,
-                    base[2] + (bit % 4) as i32,
-                ];
+                let k = voxel_key(*b, bit);
                 let state = if blk.occupied & (1 << bit) != 0 {
                     Occupancy::Occupied
                 } else {
@@ -453,13 +458,7 @@ impl OccupancyMap {
         let lo = self.key_of(lo).map(|v| v >> 2);
         let hi = self.key_of(hi).map(|v| v >> 2);
         self.occupied_blocks(lo, hi, |b, mask| {
-            bits(mask).any(|bit| {
-                f(self.voxel_center([
-                    b[0] * 4 + (bit / 16) as i32,
-                    b[1] * 4 + (bit / 4 % 4) as i32,
-                    b[2] * 4 + (bit % 4) as i32,
-                ]))
-            })
+            bits(mask).any(|bit| f(self.voxel_center(voxel_key(b, bit))))
         })
     }
 
