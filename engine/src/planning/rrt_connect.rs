@@ -28,10 +28,10 @@ impl Tree {
     fn new(dof: usize, continuous: &[bool]) -> Self {
         Tree {
             dof,
-            q: Vec::with_capacity(dof * 4096),
-            parent: Vec::with_capacity(4096),
+            q: Vec::with_capacity(dof * 256),
+            parent: Vec::with_capacity(256),
             index: NearestIndex::new(continuous),
-            domain: Vec::with_capacity(4096),
+            domain: Vec::with_capacity(256),
         }
     }
 

@@ -416,12 +416,15 @@ impl BatchChecker {
                 self.fk_link(l);
             }
         }
-        for k in 0..self.moving.len() {
-            let l = self.moving[k];
-            let (c, _) = self.bound[l].unwrap_or_default();
-            self.bounds[l] = self.poses[self.frame[l]].apply_const(c);
-        }
+        // The environment places each moving link's bound as it reaches it (most batches end
+        // at the first link or two); the self pairs need them all, placed by then.
         self.env_contact() || self.self_contact()
+    }
+
+    #[inline(always)]
+    fn place_bound(&mut self, l: usize) {
+        let (c, _) = self.bound[l].unwrap_or_default();
+        self.bounds[l] = self.poses[self.frame[l]].apply_const(c);
     }
 
     #[inline(always)]
@@ -496,6 +499,9 @@ impl BatchChecker {
     #[inline(always)]
     fn env_contact(&mut self) -> bool {
         if self.objects.is_empty() && self.map.is_none() {
+            for k in 0..self.moving.len() {
+                self.place_bound(self.moving[k]);
+            }
             return false;
         }
         // Moved out while the placements are written, and back: no reference count per batch.
@@ -513,6 +519,7 @@ impl BatchChecker {
         };
         for k in 0..self.moving.len() {
             let l = self.moving[k];
+            self.place_bound(l);
             let (_, br) = self.bound[l].unwrap_or_default();
             let b = self.bounds[l];
             let link_mask = self.objects_reached(b, br);
