@@ -97,6 +97,13 @@ pub struct SphereChecker<'a> {
 impl<'a> SphereChecker<'a> {
     /// A checker with the default edge resolution.
     pub fn new(robot: &'a Robot, env: &'a Environment) -> Self {
+        Self::beside(&super::exact::ExactChecker::new(robot, env))
+    }
+
+    /// A checker for the robot and environment of `exact`, taking from it what it decided once
+    /// about the parts that never move (so a planner holding both decides that once).
+    pub fn beside(exact: &super::exact::ExactChecker<'a>) -> Self {
+        let (robot, env) = (exact.robot(), exact.environment());
         let n_links = robot.links().len();
         let model = robot.spheres();
         let joints = JointFrames::new(robot);
@@ -156,9 +163,7 @@ impl<'a> SphereChecker<'a> {
             }
             sut.link_stamp[l] = STATIC;
         }
-        sut.static_contact = super::exact::ExactChecker::new(robot, env)
-            .static_contact()
-            .cloned();
+        sut.static_contact = exact.static_contact().cloned();
         // Tip first: in clutter the hand and forearm touch things first, so a colliding state
         // is found after fewer links.
         sut.moving_links = moving.into_iter().rev().collect();

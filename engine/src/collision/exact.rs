@@ -187,6 +187,16 @@ impl<'a> ExactChecker<'a> {
         sut
     }
 
+    /// The robot checked.
+    pub fn robot(&self) -> &'a Robot {
+        self.robot
+    }
+
+    /// The environment checked against.
+    pub fn environment(&self) -> &'a Environment {
+        self.env
+    }
+
     /// The contact among the parts that never move (links fixed to the root against the
     /// world, and link pairs that keep their relative pose), if any: it blocks every
     /// configuration.

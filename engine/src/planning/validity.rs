@@ -35,7 +35,8 @@ pub struct Validity<'a> {
 impl<'a> Validity<'a> {
     /// Checks for `robot` in `env` with edge resolution `resolution`.
     pub fn new(robot: &'a Robot, env: &'a Environment, resolution: f64, exact_radius: f64) -> Self {
-        let spheres = SphereChecker::new(robot, env).with_resolution(resolution);
+        let exact = ExactChecker::new(robot, env);
+        let spheres = SphereChecker::beside(&exact).with_resolution(resolution);
         let batch = if spheres.blocked() {
             None
         } else {
@@ -45,7 +46,7 @@ impl<'a> Validity<'a> {
             robot,
             spheres,
             batch,
-            exact: ExactChecker::new(robot, env),
+            exact,
             anchors: Vec::new(),
             exact_radius,
             resolution: resolution.max(1e-6),
