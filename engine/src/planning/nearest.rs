@@ -315,10 +315,9 @@ impl NearestIndex {
         self.split[at] = (dim as u32, points[cut].0[dim]);
     }
 
-    /// Squared distances from `q` (wrapped) to every point of `leaf` (all `SLOTS`).
+    /// Squared distances from `q` (wrapped) to the points of `leaf` (its filled blocks of
+    /// eight; the rest of `out` is stale) and the least of them.
     #[inline]
-    /// Squared distances from `q` to the points of `leaf` (its filled blocks of eight; the
-    /// rest of `out` is stale) and the least of them.
     fn leaf_distances(&self, leaf: usize, q: &[f32], out: &mut [f32; SLOTS]) -> f32 {
         let blocks = (self.len[leaf] as usize).div_ceil(8);
         let coords = &self.lanes[leaf * SLOTS * self.dof..][..SLOTS * self.dof];

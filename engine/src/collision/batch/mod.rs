@@ -523,16 +523,21 @@ impl BatchChecker {
             let (_, br) = self.bound[l].unwrap_or_default();
             let b = self.bounds[l];
             let link_mask = self.objects_reached(b, br);
-            let link_map = map.is_some() && !lanes_clear(grid, b, br);
-            if link_mask == 0 && !link_map {
+            // The lanes where the map may reach the link, then each cluster, then its
+            // spheres: a ball inside one the grid cleared in a lane is clear in that lane.
+            let link_map = match map {
+                Some(_) => unclear_lanes(grid, b, br, ALL_LANES),
+                None => 0,
+            };
+            if link_mask == 0 && link_map == 0 {
                 continue;
             }
             for ci in self.link_clusters[l].clone() {
                 self.place_cluster(l, ci);
                 let (c, cr) = (self.cluster_at[ci], self.cluster[ci].1);
                 let cluster_mask = penetrated(&self.objects, link_mask, c, cr);
-                let cluster_map = link_map && !lanes_clear(grid, c, cr);
-                if cluster_mask == 0 && !cluster_map {
+                let cluster_map = unclear_lanes(grid, c, cr, link_map);
+                if cluster_mask == 0 && cluster_map == 0 {
                     continue;
                 }
                 self.place_spheres(l, ci);
@@ -544,7 +549,7 @@ impl BatchChecker {
                     if penetrated(&self.objects, cluster_mask, p, r) != 0 {
                         return true;
                     }
-                    if cluster_map && lanes_touch_map(map, grid, p, r) {
+                    if cluster_map != 0 && lanes_touch_map(map, grid, p, r, cluster_map) {
                         return true;
                     }
                 }
@@ -775,32 +780,34 @@ fn overlap(a: [F8; 3], ra: f32, b: [F8; 3], rb: f32) -> bool {
     (dx * dx + dy * dy + dz * dz).any_lt(F8::splat(r * r))
 }
 
-/// True when the grid clears the ball (centres `p`, radius `r`) in every lane.
+/// Every lane, as bits.
+const ALL_LANES: u32 = (1 << LANES) - 1;
+
+/// Of the lanes in `lanes` (bits), those where the grid cannot clear the ball (centres `p`,
+/// radius `r`); all of them without a grid.
 #[inline(always)]
-fn lanes_clear(grid: Option<&Clearance>, p: [F8; 3], r: f32) -> bool {
+fn unclear_lanes(grid: Option<&Clearance>, p: [F8; 3], r: f32, lanes: u32) -> u32 {
     // No closures on this path: they would be compiled without the caller's AVX2.
     match grid {
-        Some(g) => g.unclear8(p, r) == 0,
-        None => false,
+        Some(g) if lanes != 0 => g.unclear8(p, r, lanes),
+        _ => lanes,
     }
 }
 
-/// True when the ball touches an occupied voxel in some lane: the grid clears what it can,
-/// the map's voxels decide the rest.
+/// True when the ball touches an occupied voxel in one of `lanes` (bits): the grid clears
+/// what it can, the map's voxels decide the rest.
 #[inline(always)]
 fn lanes_touch_map(
     map: Option<&OccupancyMap>,
     grid: Option<&Clearance>,
     p: [F8; 3],
     r: f32,
+    lanes: u32,
 ) -> bool {
     let Some(m) = map else {
         return false;
     };
-    let mut unclear = match grid {
-        Some(g) => g.unclear8(p, r),
-        None => (1 << LANES) - 1,
-    };
+    let mut unclear = unclear_lanes(grid, p, r, lanes);
     while unclear != 0 {
         let i = unclear.trailing_zeros() as usize;
         unclear &= unclear - 1;

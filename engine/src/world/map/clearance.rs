@@ -249,10 +249,11 @@ impl Clearance {
         }
     }
 
-    /// The lanes (bits) whose ball (centres `p`, radius `r`) the grids cannot clear: the
-    /// batch checker's form of [`Clearance::clear`], in `f32` with a hair of slack.
+    /// Of the lanes in `lanes` (bits), those whose ball (centres `p`, radius `r`) the grids
+    /// cannot clear: the batch checker's form of [`Clearance::clear`], in `f32` with a hair
+    /// of slack.
     #[inline(always)]
-    pub fn unclear8(&self, p: [F8; 3], r: f32) -> u32 {
+    pub fn unclear8(&self, p: [F8; 3], r: f32, lanes: u32) -> u32 {
         let g = if f64::from(r) <= self.fine_radius {
             &self.fine
         } else {
@@ -263,7 +264,10 @@ impl Clearance {
         let step = res / STEPS as f32;
         let need = r + g.half_diagonal as f32 + F32_SLACK;
         let mut out = 0;
-        for i in 0..LANES {
+        let mut todo = lanes & ((1 << LANES) - 1);
+        while todo != 0 {
+            let i = todo.trailing_zeros() as usize;
+            todo &= todo - 1;
             let c = [p[0].0[i], p[1].0[i], p[2].0[i]];
             let k = c.map(|v| (v * inv).floor() as i32);
             let cell = [0, 1, 2].map(|a| k[a].wrapping_sub(g.lo[a]) as u32 as usize);
