@@ -8,6 +8,9 @@ use std::ops::{Add, Mul, Sub};
 /// Number of lanes: configurations checked together.
 pub const LANES: usize = 8;
 
+/// Every lane, as bits (the form lane masks take).
+pub const ALL_LANES: u32 = (1 << LANES) - 1;
+
 /// Eight `f32` values, one per configuration.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 #[repr(C, align(32))]

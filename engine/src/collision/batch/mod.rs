@@ -28,7 +28,7 @@ use crate::robot::fk::JointFrames;
 use crate::robot::{Motion, Robot};
 use crate::world::map::{Clearance, OccupancyMap};
 use crate::world::Environment;
-use lanes::{Pose8, F8, LANES};
+use lanes::{Pose8, ALL_LANES, F8, LANES};
 use std::sync::Arc;
 
 /// Stamp of placements that never change (links that do not move).
@@ -779,9 +779,6 @@ fn overlap(a: [F8; 3], ra: f32, b: [F8; 3], rb: f32) -> bool {
     let r = ra + rb;
     (dx * dx + dy * dy + dz * dz).any_lt(F8::splat(r * r))
 }
-
-/// Every lane, as bits.
-const ALL_LANES: u32 = (1 << LANES) - 1;
 
 /// Of the lanes in `lanes` (bits), those where the grid cannot clear the ball (centres `p`,
 /// radius `r`); all of them without a grid.

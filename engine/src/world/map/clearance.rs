@@ -19,7 +19,7 @@
 //! share, so a snapshot holding the grids costs the next update only the bricks it rewrites.
 
 use super::{BlockKey, OccupancyMap, VoxelKey};
-use crate::collision::batch::lanes::{F8, LANES};
+use crate::collision::batch::lanes::{ALL_LANES, F8};
 use std::sync::Arc;
 
 /// Distances are stored in these fractions of a voxel.
@@ -264,7 +264,7 @@ impl Clearance {
         let step = res / STEPS as f32;
         let need = r + g.half_diagonal as f32 + F32_SLACK;
         let mut out = 0;
-        let mut todo = lanes & ((1 << LANES) - 1);
+        let mut todo = lanes & ALL_LANES;
         while todo != 0 {
             let i = todo.trailing_zeros() as usize;
             todo &= todo - 1;
