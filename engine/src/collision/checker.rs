@@ -65,6 +65,18 @@ pub struct SphereChecker<'a> {
     robot: &'a Robot,
     env: &'a Environment,
     resolution: f64,
+    stats: CheckStats,
+    /// Contact among links that never move (base against the world): blocks every configuration.
+    static_contact: Option<Contact>,
+    /// Where the sphere model is, as of the last configuration.
+    at: Placement,
+}
+
+/// The sphere model placed in the world, and what says which placements are current. It
+/// starts from the robot alone (links that never move placed once), built once per robot
+/// ([`Robot::prepared`]) and copied into each checker.
+#[derive(Clone)]
+pub(crate) struct Placement {
     /// Frames of joint links (others ride in them) and the sphere model placed in them.
     joints: JointFrames,
     bound_at: Vec<[f64; 3]>,
@@ -85,13 +97,10 @@ pub struct SphereChecker<'a> {
     cluster_stamp: Vec<u32>,
     epoch: u32,
     scratch: Vec<f64>,
-    stats: CheckStats,
     /// Links with spheres that move with the group: the only ones checked per configuration.
     moving_links: Vec<usize>,
     /// Self-collision pairs with at least one moving link.
     moving_pairs: Vec<(usize, usize)>,
-    /// Contact among links that never move (base against the world): blocks every configuration.
-    static_contact: Option<Contact>,
 }
 
 impl<'a> SphereChecker<'a> {
@@ -103,7 +112,21 @@ impl<'a> SphereChecker<'a> {
     /// A checker for the robot and environment of `exact`, taking from it what it decided once
     /// about the parts that never move (so a planner holding both decides that once).
     pub fn beside(exact: &super::exact::ExactChecker<'a>) -> Self {
-        let (robot, env) = (exact.robot(), exact.environment());
+        SphereChecker {
+            robot: exact.robot(),
+            env: exact.environment(),
+            resolution: DEFAULT_RESOLUTION,
+            stats: CheckStats::default(),
+            // What never moves is checked once, on the exact geometry (the base resting on
+            // the floor is not in contact, whatever its spheres say).
+            static_contact: exact.static_contact().cloned(),
+            at: exact.robot().prepared().spheres.clone(),
+        }
+    }
+
+    /// The sphere model of `robot` at rest, the links that never move placed once: what
+    /// every checker for the robot starts from ([`Robot::prepared`]).
+    pub(crate) fn placement(robot: &Robot) -> Placement {
         let n_links = robot.links().len();
         let model = robot.spheres();
         let joints = JointFrames::new(robot);
@@ -120,55 +143,52 @@ impl<'a> SphereChecker<'a> {
                 }
             }
         }
-        let mut sut = SphereChecker {
-            robot,
-            env,
-            resolution: DEFAULT_RESOLUTION,
-            joints,
-            bound_at,
-            cluster_at,
-            sphere_at,
-            poses: vec![Frame::identity(); n_links],
-            bounds: vec![[0.0; 3]; n_links],
-            cluster_centers: vec![[0.0; 3]; robot.spheres().clusters.len()],
-            xs: vec![0.0; robot.spheres().len()],
-            ys: vec![0.0; robot.spheres().len()],
-            zs: vec![0.0; robot.spheres().len()],
-            rs: robot.spheres().radius.clone(),
-            link_stamp: vec![0; n_links],
-            cluster_stamp: vec![0; robot.spheres().clusters.len()],
-            epoch: 0,
-            scratch: vec![0.0; robot.dof()],
-            stats: CheckStats::default(),
-            moving_links: Vec::new(),
-            moving_pairs: Vec::new(),
-            static_contact: None,
-        };
-        // What never moves is checked once, on the exact geometry (the base resting on the
-        // floor is not in contact, whatever its spheres say): the base against the world, body
-        // against body.
-        let n = robot.links().len();
-        let (moving, fixed): (Vec<usize>, Vec<usize>) = (0..n)
-            .filter(|&l| robot.spheres().bounds[l].is_some())
+        let (moving, fixed): (Vec<usize>, Vec<usize>) = (0..n_links)
+            .filter(|&l| model.bounds[l].is_some())
             .partition(|&l| robot.link_moves(l));
         let (moving_pairs, _) = robot.partition_pairs();
-        sut.joints.compute(robot, &robot.middle(), &mut sut.poses);
-        sut.epoch = 1;
+        let mut sut = SphereChecker {
+            robot,
+            env: super::prepared::nothing(),
+            resolution: DEFAULT_RESOLUTION,
+            stats: CheckStats::default(),
+            static_contact: None,
+            at: Placement {
+                joints,
+                bound_at,
+                cluster_at,
+                sphere_at,
+                poses: vec![Frame::identity(); n_links],
+                bounds: vec![[0.0; 3]; n_links],
+                cluster_centers: vec![[0.0; 3]; model.clusters.len()],
+                xs: vec![0.0; model.len()],
+                ys: vec![0.0; model.len()],
+                zs: vec![0.0; model.len()],
+                rs: model.radius.clone(),
+                link_stamp: vec![0; n_links],
+                cluster_stamp: vec![0; model.clusters.len()],
+                epoch: 0,
+                scratch: vec![0.0; robot.dof()],
+                // Tip first: in clutter the hand and forearm touch things first, so a
+                // colliding state is found after fewer links.
+                moving_links: moving.into_iter().rev().collect(),
+                moving_pairs,
+            },
+        };
+        sut.at
+            .joints
+            .compute(robot, &robot.middle(), &mut sut.at.poses);
+        sut.at.epoch = 1;
         for &l in &fixed {
             sut.place_bound(l);
             sut.place_clusters(l);
-            for ci in robot.spheres().link_clusters[l].clone() {
+            for ci in model.link_clusters[l].clone() {
                 sut.place_spheres(ci, l);
-                sut.cluster_stamp[ci] = STATIC;
+                sut.at.cluster_stamp[ci] = STATIC;
             }
-            sut.link_stamp[l] = STATIC;
+            sut.at.link_stamp[l] = STATIC;
         }
-        sut.static_contact = exact.static_contact().cloned();
-        // Tip first: in clutter the hand and forearm touch things first, so a colliding state
-        // is found after fewer links.
-        sut.moving_links = moving.into_iter().rev().collect();
-        sut.moving_pairs = moving_pairs;
-        sut
+        sut.at
     }
 
     /// Sets the edge-check resolution (configuration-space distance between checked states).
@@ -214,9 +234,9 @@ impl<'a> SphereChecker<'a> {
         if self.env_contact_any() {
             return false;
         }
-        let pairs = std::mem::take(&mut self.moving_pairs);
+        let pairs = std::mem::take(&mut self.at.moving_pairs);
         let free = self.self_contact(&pairs).is_none();
-        self.moving_pairs = pairs;
+        self.at.moving_pairs = pairs;
         free
     }
 
@@ -226,11 +246,11 @@ impl<'a> SphereChecker<'a> {
             return Some(c.clone());
         }
         self.update(q);
-        let links = std::mem::take(&mut self.moving_links);
-        let pairs = std::mem::take(&mut self.moving_pairs);
+        let links = std::mem::take(&mut self.at.moving_links);
+        let pairs = std::mem::take(&mut self.at.moving_pairs);
         let contact = self.first_contact(&links, &pairs);
-        self.moving_links = links;
-        self.moving_pairs = pairs;
+        self.at.moving_links = links;
+        self.at.moving_pairs = pairs;
         contact
     }
 
@@ -266,94 +286,94 @@ impl<'a> SphereChecker<'a> {
         self.stats.motions += 1;
         let robot = self.robot;
         let resolution = self.resolution;
-        let mut q = std::mem::take(&mut self.scratch);
+        let mut q = std::mem::take(&mut self.at.scratch);
         let ok = bisect_motion(robot, resolution, a, b, &mut q, |q| self.is_valid(q));
-        self.scratch = q;
+        self.at.scratch = q;
         ok
     }
 
     /// FK and world bounds of the moving links; clusters and spheres are placed on demand.
     #[inline]
     fn update(&mut self, q: &[f64]) {
-        self.joints.compute(self.robot, q, &mut self.poses);
-        self.epoch += 1;
-        if self.epoch == STATIC {
+        self.at.joints.compute(self.robot, q, &mut self.at.poses);
+        self.at.epoch += 1;
+        if self.at.epoch == STATIC {
             // Wrapped: forget every stamp of the moving links.
-            for &l in &self.moving_links {
-                self.link_stamp[l] = 0;
+            for &l in &self.at.moving_links {
+                self.at.link_stamp[l] = 0;
                 for ci in self.robot.spheres().link_clusters[l].clone() {
-                    self.cluster_stamp[ci] = 0;
+                    self.at.cluster_stamp[ci] = 0;
                 }
             }
-            self.epoch = 1;
+            self.at.epoch = 1;
         }
-        for k in 0..self.moving_links.len() {
-            self.place_bound(self.moving_links[k]);
+        for k in 0..self.at.moving_links.len() {
+            self.place_bound(self.at.moving_links[k]);
         }
     }
 
     #[inline]
     fn place_bound(&mut self, li: usize) {
         if self.robot.spheres().bounds[li].is_some() {
-            let w = self.poses[self.joints.frame[li]] * Point3::from(self.bound_at[li]);
-            self.bounds[li] = [w.x, w.y, w.z];
+            let w = self.at.poses[self.at.joints.frame[li]] * Point3::from(self.at.bound_at[li]);
+            self.at.bounds[li] = [w.x, w.y, w.z];
         }
     }
 
     /// Places link `li`'s cluster centres unless current.
     #[inline]
     fn place_clusters(&mut self, li: usize) {
-        let stamp = self.link_stamp[li];
-        if stamp == self.epoch || stamp == STATIC {
+        let stamp = self.at.link_stamp[li];
+        if stamp == self.at.epoch || stamp == STATIC {
             return;
         }
-        self.link_stamp[li] = self.epoch;
+        self.at.link_stamp[li] = self.at.epoch;
         let model = self.robot.spheres();
-        let pose = &self.poses[self.joints.frame[li]];
+        let pose = &self.at.poses[self.at.joints.frame[li]];
         for ci in model.link_clusters[li].clone() {
-            let w = pose * Point3::from(self.cluster_at[ci]);
-            self.cluster_centers[ci] = [w.x, w.y, w.z];
+            let w = pose * Point3::from(self.at.cluster_at[ci]);
+            self.at.cluster_centers[ci] = [w.x, w.y, w.z];
         }
     }
 
     /// Places cluster `ci`'s spheres (of link `li`) unless current.
     #[inline]
     fn place_spheres(&mut self, ci: usize, li: usize) {
-        let stamp = self.cluster_stamp[ci];
-        if stamp == self.epoch || stamp == STATIC {
+        let stamp = self.at.cluster_stamp[ci];
+        if stamp == self.at.epoch || stamp == STATIC {
             return;
         }
-        self.cluster_stamp[ci] = self.epoch;
+        self.at.cluster_stamp[ci] = self.at.epoch;
         let model = self.robot.spheres();
-        let pose = &self.poses[self.joints.frame[li]];
+        let pose = &self.at.poses[self.at.joints.frame[li]];
         for s in model.clusters[ci].range.clone() {
-            let w = pose * Point3::from(self.sphere_at[s]);
-            (self.xs[s], self.ys[s], self.zs[s]) = (w.x, w.y, w.z);
+            let w = pose * Point3::from(self.at.sphere_at[s]);
+            (self.at.xs[s], self.at.ys[s], self.at.zs[s]) = (w.x, w.y, w.z);
         }
     }
 
     #[inline]
     fn center(&self, s: usize) -> [f64; 3] {
-        [self.xs[s], self.ys[s], self.zs[s]]
+        [self.at.xs[s], self.at.ys[s], self.at.zs[s]]
     }
 
     fn env_contact_any(&mut self) -> bool {
         let model = self.robot.spheres();
         let env = self.env;
-        for k in 0..self.moving_links.len() {
-            let li = self.moving_links[k];
+        for k in 0..self.at.moving_links.len() {
+            let li = self.at.moving_links[k];
             let Some((_, bound_r)) = model.bounds[li] else {
                 continue;
             };
-            let mask = env.sphere_candidates(self.bounds[li], bound_r);
-            let map = env.sphere_hits_map(self.bounds[li], bound_r);
+            let mask = env.sphere_candidates(self.at.bounds[li], bound_r);
+            let map = env.sphere_hits_map(self.at.bounds[li], bound_r);
             if mask == 0 && !map {
                 continue;
             }
             self.place_clusters(li);
             for ci in model.link_clusters[li].clone() {
                 let cluster = &model.clusters[ci];
-                let c = self.cluster_centers[ci];
+                let c = self.at.cluster_centers[ci];
                 let cmask = if mask == 0 {
                     0
                 } else {
@@ -383,33 +403,33 @@ impl<'a> SphereChecker<'a> {
             let (Some((_, ra)), Some((_, rb))) = (model.bounds[a], model.bounds[b]) else {
                 continue;
             };
-            if !overlap(self.bounds[a], ra, self.bounds[b], rb) {
+            if !overlap(self.at.bounds[a], ra, self.at.bounds[b], rb) {
                 continue;
             }
             self.place_clusters(a);
             self.place_clusters(b);
             for ca in model.link_clusters[a].clone() {
                 let cla = &model.clusters[ca];
-                let pa = self.cluster_centers[ca];
-                if !overlap(pa, cla.radius, self.bounds[b], rb) {
+                let pa = self.at.cluster_centers[ca];
+                if !overlap(pa, cla.radius, self.at.bounds[b], rb) {
                     continue;
                 }
                 for cb in model.link_clusters[b].clone() {
                     let clb = &model.clusters[cb];
-                    if !overlap(pa, cla.radius, self.cluster_centers[cb], clb.radius) {
+                    if !overlap(pa, cla.radius, self.at.cluster_centers[cb], clb.radius) {
                         continue;
                     }
                     self.place_spheres(ca, a);
                     self.place_spheres(cb, b);
                     let r = clb.range.clone();
                     let lanes = [
-                        &self.xs[r.clone()],
-                        &self.ys[r.clone()],
-                        &self.zs[r.clone()],
-                        &self.rs[r],
+                        &self.at.xs[r.clone()],
+                        &self.at.ys[r.clone()],
+                        &self.at.zs[r.clone()],
+                        &self.at.rs[r],
                     ];
                     for i in cla.range.clone() {
-                        let sphere = [self.xs[i], self.ys[i], self.zs[i], self.rs[i]];
+                        let sphere = [self.at.xs[i], self.at.ys[i], self.at.zs[i], self.at.rs[i]];
                         if any_overlap(sphere, lanes) {
                             return Some((a, b));
                         }

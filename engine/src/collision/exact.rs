@@ -151,6 +151,25 @@ pub struct ExactChecker<'a> {
 impl<'a> ExactChecker<'a> {
     /// A checker for `robot` in `env` (object shapes are converted once here).
     pub fn new(robot: &'a Robot, env: &'a Environment) -> Self {
+        let (mut sut, fixed) = Self::at_rest(robot, env);
+        // The links that never move against the world here; against each other once per robot.
+        sut.static_contact = sut
+            .first_contact(&fixed, &[])
+            .or_else(|| robot.prepared().fixed_self_contact.clone());
+        sut
+    }
+
+    /// The contact between links that never move apart, if any (see
+    /// [`ExactChecker::static_contact`]): the same in every environment.
+    pub(crate) fn fixed_self_contact(robot: &Robot) -> Option<Contact> {
+        let (sut, _) = ExactChecker::at_rest(robot, super::prepared::nothing());
+        let (_, fixed_pairs) = robot.partition_pairs();
+        sut.first_contact(&[], &fixed_pairs)
+    }
+
+    /// A checker with the robot at the middle of its limits, static contact not yet decided,
+    /// and the links with geometry that never move.
+    fn at_rest(robot: &'a Robot, env: &'a Environment) -> (Self, Vec<usize>) {
         let objects = env
             .objects()
             .iter()
@@ -171,7 +190,7 @@ impl<'a> ExactChecker<'a> {
         let (moving, fixed): (Vec<usize>, Vec<usize>) = (0..n)
             .filter(|&l| robot.exact_model().link_bound(l).is_some())
             .partition(|&l| robot.link_moves(l));
-        let (moving_pairs, fixed_pairs) = robot.partition_pairs();
+        let (moving_pairs, _) = robot.partition_pairs();
         let mut sut = ExactChecker {
             robot,
             env,
@@ -183,8 +202,7 @@ impl<'a> ExactChecker<'a> {
             checks: 0,
         };
         robot.forward_kinematics(&robot.middle(), &mut sut.poses);
-        sut.static_contact = sut.first_contact(&fixed, &fixed_pairs);
-        sut
+        (sut, fixed)
     }
 
     /// The robot checked.

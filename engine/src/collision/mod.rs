@@ -10,7 +10,8 @@
 //!   parry3d) for start/goal validity, path validation and contacts named precisely;
 //! - [`parry`]: parry3d conversions and exact distances (SPARK's criticality test). All parry3d
 //!   conversions live there;
-//! - [`convex`]: convex hulls of mesh geometry.
+//! - [`convex`]: convex hulls of mesh geometry;
+//! - `prepared`: what the checkers derive from a robot alone, built once per robot.
 
 pub mod batch;
 pub mod checker;
@@ -19,6 +20,7 @@ pub mod distance;
 pub mod exact;
 pub mod gjk;
 pub mod parry;
+pub(crate) mod prepared;
 pub mod ray;
 pub mod shape;
 

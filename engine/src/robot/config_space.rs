@@ -52,6 +52,11 @@ pub fn wrap_angle(a: f64) -> f64 {
     if (-PI..PI).contains(&a) {
         return a;
     }
+    // One turn off is the common case (the difference of two wrapped angles): no division.
+    let w = if a >= PI { a - 2.0 * PI } else { a + 2.0 * PI };
+    if (-PI..PI).contains(&w) {
+        return w;
+    }
     let w = (a + PI).rem_euclid(2.0 * PI) - PI;
     if w >= PI {
         w - 2.0 * PI
@@ -198,7 +203,21 @@ mod tests {
 
     #[test]
     fn wrap_angle_maps_into_half_open_range() {
-        for a in [-7.0, -PI, -1.0, 0.0, 1.0, PI, 7.0, 100.0] {
+        for a in [
+            -7.0,
+            -4.0,
+            -PI,
+            -1.0,
+            0.0,
+            1.0,
+            PI,
+            4.0,
+            7.0,
+            9.42,
+            100.0,
+            -1e9,
+            6.283185307179585,
+        ] {
             let sut = wrap_angle(a);
             assert!((-PI..PI).contains(&sut), "{a} -> {sut}");
             assert!(

@@ -30,6 +30,7 @@ pub use description::{LoadRobotError, RobotSpec};
 
 use crate::collision::convex::ConvexHull;
 use crate::collision::exact::ExactModel;
+use crate::collision::prepared::{Prepared, PreparedCell};
 use crate::collision::Shape;
 use crate::Pose;
 use nalgebra::{Translation3, Unit, UnitQuaternion, Vector3};
@@ -147,6 +148,8 @@ pub struct Robot {
     pub(crate) info: Arc<description::LoadInfo>,
     /// Joint origins as rotation-matrix frames (for [`Robot::forward_kinematics_frames`]).
     pub(crate) origin_frames: Vec<fk::Frame>,
+    /// The checkers' robot-only data, built on first use (after the robot is complete).
+    pub(crate) prepared: PreparedCell,
 }
 
 /// How far the spheres of a held object may stand proud of it, at least (metres).
@@ -287,13 +290,28 @@ impl Robot {
         })
     }
 
+    /// What the checkers derive from this robot alone (built on first use).
+    pub(crate) fn prepared(&self) -> &Prepared {
+        self.prepared.get(self)
+    }
+
     /// Self-collision pairs split into those whose relative pose changes with the group
     /// (checked per configuration) and those that never move relative to each other (checked
     /// once).
     pub(crate) fn partition_pairs(&self) -> (LinkPairs, LinkPairs) {
-        self.self_pairs.iter().partition(|&&(a, b)| {
-            (self.link_moves(a) || self.link_moves(b)) && !self.rigid_body(a).contains(&b)
-        })
+        // Per link, the root of its rigid body (up through fixed joints): two links share a
+        // body exactly when they share that root (see [`Robot::rigid_body`]). Parents come
+        // first, so one pass finds every root.
+        let mut body = Vec::with_capacity(self.links.len());
+        for (i, l) in self.links.iter().enumerate() {
+            body.push(match (&l.motion, l.parent) {
+                (Motion::Fixed, Some(p)) => body[p],
+                _ => i,
+            });
+        }
+        self.self_pairs
+            .iter()
+            .partition(|&&(a, b)| (self.link_moves(a) || self.link_moves(b)) && body[a] != body[b])
     }
 
     /// Links moving rigidly with `link` (itself included): up through fixed joints to the body's
@@ -356,5 +374,40 @@ impl Robot {
         }
         robot.self_pairs.sort_unstable();
         robot
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pairs_split_by_whether_they_move_apart() {
+        let fetch = Robot::builtin("fetch").unwrap();
+        let hand = fetch.link_index("gripper_link").unwrap();
+        let holding = fetch.with_attached(
+            hand,
+            "can",
+            Shape::Cylinder {
+                radius: 0.03,
+                half_length: 0.06,
+            },
+            Pose::identity(),
+        );
+        for mut robot in [Robot::builtin("panda").unwrap(), fetch, holding] {
+            // Every pair, the ones a description would disable (same body) included.
+            let n = robot.links.len();
+            robot.self_pairs = (0..n)
+                .flat_map(|a| (a + 1..n).map(move |b| (a, b)))
+                .collect();
+            let (moving, fixed) = robot.partition_pairs();
+            assert!(!moving.is_empty(), "{}", robot.name());
+            for &(a, b) in robot.self_collision_pairs() {
+                let apart = (robot.link_moves(a) || robot.link_moves(b))
+                    && !robot.rigid_body(a).contains(&b);
+                assert_eq!(moving.contains(&(a, b)), apart, "{a} {b}");
+                assert_eq!(fixed.contains(&(a, b)), !apart, "{a} {b}");
+            }
+        }
     }
 }

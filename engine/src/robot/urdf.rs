@@ -442,6 +442,7 @@ pub(crate) fn build(input: &BuildInput, info: &mut LoadInfo) -> Result<Built, Lo
         exact: Arc::new(ExactModel::default()),
         info: Arc::default(),
         origin_frames: Vec::new(),
+        prepared: Default::default(),
     };
     robot.origin_frames = robot
         .links

@@ -65,6 +65,7 @@ struct Object8 {
 }
 
 /// Eight-lane collision checks for one robot in one environment (see the module docs).
+#[derive(Clone)]
 pub struct BatchChecker {
     dof: usize,
     /// Per link: the frame its pose is computed in (its own for a joint or the root, else its
@@ -76,6 +77,8 @@ pub struct BatchChecker {
     kind: Vec<Kind>,
     variable: Vec<usize>,
     moves: Vec<bool>,
+    /// Links whose pose a batch computes (moving, in their own frame), parents first.
+    posed: Vec<usize>,
     /// Links with spheres that move.
     moving: Vec<usize>,
     /// Per link: bound centre (link frame) and radius (+ margin), if it has spheres.
@@ -114,15 +117,17 @@ impl BatchChecker {
     /// A batch checker, or `None` when the environment holds more than 64 objects or a link
     /// has more than 64 sphere clusters (the scalar checker handles those).
     pub fn new(robot: &Robot, env: &Environment) -> Option<Self> {
+        robot.prepared().batch.as_ref()?.in_environment(env)
+    }
+
+    /// The batch checker for `robot` in an empty environment: what depends on the robot
+    /// alone, built once per robot ([`Robot::prepared`]). `None` when a link has more than 64
+    /// sphere clusters.
+    pub(crate) fn for_robot(robot: &Robot) -> Option<Self> {
         let clusters_per_link = robot.spheres().link_clusters.iter().map(|r| r.len());
-        if env.objects().len() > 64 || clusters_per_link.max() > Some(64) {
+        if clusters_per_link.max() > Some(64) {
             return None;
         }
-        // An empty map is no obstacle; the grid of a non-empty one is built here, not mid-check.
-        let map = env.shared_map().filter(|m| {
-            m.clearance();
-            m.has_occupied()
-        });
         let links = robot.links();
         let model = robot.spheres();
         let f = |v: f64| v as f32;
@@ -192,6 +197,80 @@ impl BatchChecker {
                 (place(l, model.center[s]), f(model.radius[s]) + MARGIN)
             })
             .collect();
+        let (moving_pairs, _) = robot.partition_pairs();
+        let pairs = moving_pairs
+            .into_iter()
+            .filter(|&(a, b)| bound[a].is_some() && bound[b].is_some())
+            .collect();
+        let n_links = links.len();
+        // Links come parents first (`Robot::links`), so a pose is computed after its parent's.
+        debug_assert!((0..n_links).all(|l| links[l].parent.is_none_or(|p| frame[p] < l)));
+        let posed = (0..n_links)
+            .filter(|&l| moves[l] && frame[l] == l)
+            .collect();
+        let mut sut = BatchChecker {
+            dof: robot.dof(),
+            parent: links.iter().map(|l| l.parent.map(|p| frame[p])).collect(),
+            frame,
+            origin,
+            kind,
+            variable,
+            posed,
+            moves,
+            moving,
+            bound,
+            link_clusters: model.link_clusters.clone(),
+            cluster,
+            sphere,
+            objects: Vec::new(),
+            object_boxes: Vec::new(),
+            map: None,
+            pairs,
+            poses: vec![Pose8::default(); n_links],
+            bounds: vec![[F8::default(); 3]; n_links],
+            cluster_at: vec![[F8::default(); 3]; model.clusters.len()],
+            cluster_stamp: vec![0; model.clusters.len()],
+            sphere_at: vec![[F8::default(); 3]; model.len()],
+            sphere_stamp: vec![0; model.clusters.len()],
+            epoch: 0,
+            states: 0,
+            lanes: vec![F8::default(); robot.dof()],
+            delta: vec![0.0; robot.dof()],
+            avx2: has_avx2(),
+        };
+        // Links that never move have the same pose, bound, clusters and spheres in every
+        // batch: placed once, stamped as always valid.
+        for l in 0..n_links {
+            if !sut.moves[l] && sut.frame[l] == l {
+                sut.fk_link(l);
+            }
+        }
+        sut.epoch = STATIC;
+        let moves_at_all = sut.moves.clone();
+        for l in (0..n_links).filter(|&l| !moves_at_all[l]) {
+            if let Some((c, _)) = sut.bound[l] {
+                sut.bounds[l] = sut.poses[sut.frame[l]].apply_const(c);
+            }
+            for ci in sut.link_clusters[l].clone() {
+                sut.place_cluster(l, ci);
+                sut.place_spheres(l, ci);
+            }
+        }
+        sut.epoch = 0;
+        Some(sut)
+    }
+
+    /// A copy of this checker in `env`; `None` when it holds more than 64 objects.
+    fn in_environment(&self, env: &Environment) -> Option<Self> {
+        if env.objects().len() > 64 {
+            return None;
+        }
+        // An empty map is no obstacle; the grid of a non-empty one is built here, not mid-check.
+        let map = env.shared_map().filter(|m| {
+            m.clearance();
+            m.has_occupied()
+        });
+        let f = |v: f64| v as f32;
         let objects: Vec<Object8> = env
             .placed()
             .map(|o| Object8 {
@@ -236,63 +315,12 @@ impl BatchChecker {
                 )
             })
             .collect();
-        let (moving_pairs, _) = robot.partition_pairs();
-        let pairs = moving_pairs
-            .into_iter()
-            .filter(|&(a, b)| bound[a].is_some() && bound[b].is_some())
-            .collect();
-        let n_links = links.len();
-        // Links come parents first (`Robot::links`), so a pose is computed after its parent's.
-        debug_assert!((0..n_links).all(|l| links[l].parent.is_none_or(|p| frame[p] < l)));
-        let mut sut = BatchChecker {
-            dof: robot.dof(),
-            parent: links.iter().map(|l| l.parent.map(|p| frame[p])).collect(),
-            frame,
-            origin,
-            kind,
-            variable,
-            moves,
-            moving,
-            bound,
-            link_clusters: model.link_clusters.clone(),
-            cluster,
-            sphere,
+        Some(BatchChecker {
             objects,
             object_boxes,
             map,
-            pairs,
-            poses: vec![Pose8::default(); n_links],
-            bounds: vec![[F8::default(); 3]; n_links],
-            cluster_at: vec![[F8::default(); 3]; model.clusters.len()],
-            cluster_stamp: vec![0; model.clusters.len()],
-            sphere_at: vec![[F8::default(); 3]; model.len()],
-            sphere_stamp: vec![0; model.clusters.len()],
-            epoch: 0,
-            states: 0,
-            lanes: vec![F8::default(); robot.dof()],
-            delta: vec![0.0; robot.dof()],
-            avx2: has_avx2(),
-        };
-        // Links that never move have the same pose, bound, clusters and spheres in every
-        // batch: placed once, stamped as always valid.
-        for l in 0..n_links {
-            if !sut.moves[l] && sut.frame[l] == l {
-                sut.fk_link(l);
-            }
-        }
-        sut.epoch = STATIC;
-        let moves_at_all = sut.moves.clone();
-        for l in (0..n_links).filter(|&l| !moves_at_all[l]) {
-            if let Some((c, _)) = sut.bound[l] {
-                sut.bounds[l] = sut.poses[sut.frame[l]].apply_const(c);
-            }
-            for ci in sut.link_clusters[l].clone() {
-                sut.place_cluster(l, ci);
-                sut.place_spheres(l, ci);
-            }
-        }
-        sut.epoch = 0;
-        Some(sut)
+            ..self.clone()
+        })
     }
 
     /// True when any of the states strictly between `a` and `b` (at `resolution`, the
@@ -411,10 +439,8 @@ impl BatchChecker {
             }
             self.epoch = 1;
         }
-        for l in 0..self.parent.len() {
-            if self.moves[l] && self.frame[l] == l {
-                self.fk_link(l);
-            }
+        for k in 0..self.posed.len() {
+            self.fk_link(self.posed[k]);
         }
         // The environment places each moving link's bound as it reaches it (most batches end
         // at the first link or two); the self pairs need them all, placed by then.
