@@ -64,3 +64,43 @@ pub(crate) fn nothing() -> &'static Environment {
     static NOTHING: OnceLock<Environment> = OnceLock::new();
     NOTHING.get_or_init(Environment::new)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::planning::PlannerRng;
+    use rand::SeedableRng;
+
+    /// A copy with a joint outside the group moved (the head turned towards where the arm
+    /// reaches) checks as the same copy of a robot never used, not as the robot it came from.
+    #[test]
+    fn a_changed_copy_derives_its_own() {
+        let (used, fresh) = (
+            Robot::builtin("fetch").unwrap(),
+            Robot::builtin("fetch").unwrap(),
+        );
+        let turned = [("head_pan_joint", 1.2), ("head_tilt_joint", 1.0)];
+        let mut before = SphereChecker::new(&used, nothing());
+        let _ = before.is_valid(used.named_state("stow").unwrap());
+        let a = used.with_joint_values(turned).unwrap();
+        let b = fresh.with_joint_values(turned).unwrap();
+        assert!(matches!(a, std::borrow::Cow::Owned(_)));
+        let (mut sut, mut oracle) = (
+            SphereChecker::new(&a, nothing()),
+            SphereChecker::new(&b, nothing()),
+        );
+        let mut rng = PlannerRng::seed_from_u64(7);
+        let mut q = vec![0.0; used.dof()];
+        let mut moved_matters = 0;
+        for _ in 0..4000 {
+            used.sample_uniform(&mut rng, &mut q);
+            let verdict = sut.is_valid(&q);
+            assert_eq!(verdict, oracle.is_valid(&q), "{q:?}");
+            moved_matters += usize::from(verdict != before.is_valid(&q));
+        }
+        assert!(
+            moved_matters > 0,
+            "the head never met the arm: the test shows nothing"
+        );
+    }
+}
