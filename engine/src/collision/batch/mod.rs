@@ -95,8 +95,8 @@ pub struct BatchChecker {
     object_boxes: Vec<([F8; 3], [F8; 3])>,
     /// The occupancy map to avoid, if any.
     map: Option<Arc<OccupancyMap>>,
-    /// Self-collision pairs with a moving link, both with spheres.
-    pairs: Vec<(usize, usize)>,
+    /// Self-collision pairs with a moving link, both with spheres, and their bound radii.
+    pairs: Vec<(usize, usize, f32, f32)>,
     /// Per-batch state.
     poses: Vec<Pose8>,
     bounds: Vec<[F8; 3]>,
@@ -200,7 +200,7 @@ impl BatchChecker {
         let (moving_pairs, _) = robot.partition_pairs();
         let pairs = moving_pairs
             .into_iter()
-            .filter(|&(a, b)| bound[a].is_some() && bound[b].is_some())
+            .filter_map(|(a, b)| Some((a, b, bound[a]?.1, bound[b]?.1)))
             .collect();
         let n_links = links.len();
         // Links come parents first (`Robot::links`), so a pose is computed after its parent's.
@@ -607,11 +607,7 @@ impl BatchChecker {
     #[inline(always)]
     fn self_contact(&mut self) -> bool {
         for k in 0..self.pairs.len() {
-            let (a, b) = self.pairs[k];
-            let (ra, rb) = (
-                self.bound[a].unwrap_or_default().1,
-                self.bound[b].unwrap_or_default().1,
-            );
+            let (a, b, ra, rb) = self.pairs[k];
             let (ba, bb) = (self.bounds[a], self.bounds[b]);
             if !overlap(ba, ra, bb, rb) {
                 continue;
@@ -643,8 +639,7 @@ impl BatchChecker {
                         continue;
                     }
                     self.place_spheres(a, ca);
-                    self.place_spheres(b, cb);
-                    if self.spheres_touch(ca, cb) {
+                    if self.spheres_touch(b, ca, cb) {
                         return true;
                     }
                 }
@@ -656,19 +651,22 @@ impl BatchChecker {
     /// True when a sphere of cluster `ca` overlaps one of cluster `cb` in some lane (both
     /// placed).
     #[inline(always)]
-    fn spheres_touch(&self, ca: usize, cb: usize) -> bool {
+    fn spheres_touch(&mut self, b: usize, ca: usize, cb: usize) -> bool {
         let (pb, crb) = (self.cluster_at[cb], self.cluster[cb].1);
-        let (range_a, range_b) = (self.cluster[ca].2.clone(), self.cluster[cb].2.clone());
-        let (at_a, at_b) = (
-            &self.sphere_at[range_a.clone()],
-            &self.sphere_at[range_b.clone()],
-        );
-        let (model_a, model_b) = (&self.sphere[range_a], &self.sphere[range_b]);
-        for (&pi, &(_, ri)) in at_a.iter().zip(model_a) {
+        let range_a = self.cluster[ca].2.clone();
+        let mut first = true;
+        for i in range_a {
+            let (pi, ri) = (self.sphere_at[i], self.sphere[i].1);
             // A sphere clear of the other cluster's bound is clear of its spheres.
             if !overlap(pi, ri, pb, crb) {
                 continue;
             }
+            if first {
+                self.place_spheres(b, cb);
+                first = false;
+            }
+            let range_b = self.cluster[cb].2.clone();
+            let (at_b, model_b) = (&self.sphere_at[range_b.clone()], &self.sphere[range_b]);
             for (&pj, &(_, rj)) in at_b.iter().zip(model_b) {
                 if overlap(pi, ri, pj, rj) {
                     return true;
