@@ -76,7 +76,6 @@ pub struct BatchChecker {
     origin: Vec<Origin>,
     kind: Vec<Kind>,
     variable: Vec<usize>,
-    moves: Vec<bool>,
     /// Links whose pose a batch computes (moving, in their own frame), parents first.
     posed: Vec<usize>,
     /// Links with spheres that move.
@@ -216,7 +215,6 @@ impl BatchChecker {
             kind,
             variable,
             posed,
-            moves,
             moving,
             bound,
             link_clusters: model.link_clusters.clone(),
@@ -240,14 +238,13 @@ impl BatchChecker {
         };
         // Links that never move have the same pose, bound, clusters and spheres in every
         // batch: placed once, stamped as always valid.
-        for l in 0..n_links {
-            if !sut.moves[l] && sut.frame[l] == l {
+        for (l, &m) in moves.iter().enumerate() {
+            if !m && sut.frame[l] == l {
                 sut.fk_link(l);
             }
         }
         sut.epoch = STATIC;
-        let moves_at_all = sut.moves.clone();
-        for l in (0..n_links).filter(|&l| !moves_at_all[l]) {
+        for l in (0..n_links).filter(|&l| !moves[l]) {
             if let Some((c, _)) = sut.bound[l] {
                 sut.bounds[l] = sut.poses[sut.frame[l]].apply_const(c);
             }
