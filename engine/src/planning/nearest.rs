@@ -53,8 +53,6 @@ pub struct NearestIndex {
     stack: Vec<(u32, f64)>,
     target: Vec<f64>,
     target32: Vec<f32>,
-    /// A leaf's distances, kept between queries.
-    distances: Vec<f32>,
     avx2: bool,
 }
 
@@ -80,7 +78,6 @@ impl NearestIndex {
             stack: Vec::with_capacity(64),
             target: vec![0.0; dof],
             target32: vec![0.0; dof],
-            distances: vec![0.0; SLOTS],
             avx2: has_avx2(),
         }
     }
@@ -134,7 +131,6 @@ impl NearestIndex {
         stack.push((0, 0.0));
         let mut best = (f64::INFINITY, NONE);
         let mut best_slot = (0, 0);
-        let mut d2 = std::mem::take(&mut self.distances);
         let mut q32 = std::mem::take(&mut self.target32);
         for (l, &v) in q32.iter_mut().zip(q.iter()) {
             *l = v as f32;
@@ -146,17 +142,10 @@ impl NearestIndex {
             let [a, b] = self.children[at as usize];
             if a == NONE {
                 let leaf = b as usize;
-                let n = self.len[leaf] as usize;
-                let out: &mut [f32; SLOTS] = d2.as_mut_slice().try_into().expect("SLOTS long");
-                let nearest_here = self.leaf_distances(leaf, &q32, out);
+                let (nearest_here, k) = self.leaf_nearest(leaf, &q32);
                 if nearest_here as f64 >= best.0 {
                     continue;
                 }
-                // The first slot at the least distance (the lanes found the value).
-                let k = d2[..n]
-                    .iter()
-                    .position(|&d| d == nearest_here)
-                    .expect("the least distance is a filled slot's");
                 best = (nearest_here as f64, self.ids[leaf * SLOTS + k]);
                 best_slot = (leaf, k);
                 continue;
@@ -177,7 +166,6 @@ impl NearestIndex {
         }
         self.stack = stack;
         self.target32 = q32;
-        self.distances = d2;
         // The lanes chose; the exact coordinates give the distance.
         let d2 = self.exact_dist2(best_slot.0, best_slot.1, &q);
         self.target = q;
@@ -185,13 +173,10 @@ impl NearestIndex {
     }
 
     /// `p` with continuous joints wrapped into [-π, π).
+    #[inline]
     fn wrapped(&self, p: &[f64], out: &mut [f64]) {
-        for j in 0..self.dof {
-            out[j] = if self.continuous[j] {
-                wrap_angle(p[j])
-            } else {
-                p[j]
-            };
+        for ((o, &v), &c) in out.iter_mut().zip(p).zip(&self.continuous) {
+            *o = if c { wrap_angle(v) } else { v };
         }
     }
 
@@ -246,10 +231,15 @@ impl NearestIndex {
 
     /// Squared distance from `q` (wrapped) to point `k` of `leaf`, in `f64`.
     fn exact_dist2(&self, leaf: usize, k: usize, q: &[f64]) -> f64 {
-        (0..self.dof)
-            .map(|j| {
-                let d = q[j] - self.coord(leaf, j, k);
-                let d = if self.continuous[j] { wrap_angle(d) } else { d };
+        let point = self.coords[leaf * SLOTS * self.dof + k..]
+            .iter()
+            .step_by(SLOTS);
+        q.iter()
+            .zip(point)
+            .zip(&self.continuous)
+            .map(|((&qj, &pj), &c)| {
+                let d = qj - pj;
+                let d = if c { wrap_angle(d) } else { d };
                 d * d
             })
             .sum()
@@ -315,18 +305,18 @@ impl NearestIndex {
         self.split[at] = (dim as u32, points[cut].0[dim]);
     }
 
-    /// Squared distances from `q` (wrapped) to the points of `leaf` (its filled blocks of
-    /// eight; the rest of `out` is stale) and the least of them.
+    /// The least squared distance (in `f32`) from `q` (wrapped) to a point of `leaf`, and the
+    /// first slot at it.
     #[inline]
-    fn leaf_distances(&self, leaf: usize, q: &[f32], out: &mut [f32; SLOTS]) -> f32 {
+    fn leaf_nearest(&self, leaf: usize, q: &[f32]) -> (f32, usize) {
         let blocks = (self.len[leaf] as usize).div_ceil(8);
         let coords = &self.lanes[leaf * SLOTS * self.dof..][..SLOTS * self.dof];
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: the CPU has AVX2 (checked at construction).
-            return unsafe { leaf_distances_avx2(coords, q, &self.continuous, blocks, out) };
+            return unsafe { leaf_nearest_avx2(coords, q, &self.continuous, blocks) };
         }
-        leaf_distances(coords, q, &self.continuous, blocks, out)
+        leaf_nearest(coords, q, &self.continuous, blocks)
     }
 
     /// Squared distance from `p` (wrapped) to node `at`'s box. Branch-free over the joints:
@@ -347,66 +337,103 @@ impl NearestIndex {
     }
 }
 
-/// The distance kernel: joint by joint over all slots, so the inner loop runs across lanes;
-/// returns the smallest distance (empty slots hold [`EMPTY`], far from everything).
-/// Continuous joints are wrapped values, so their difference needs one correction at most.
+/// The distance kernel: block by block of eight slots, each block's sums kept in lanes over
+/// the joints; returns the least squared distance and the first slot at it (empty slots hold
+/// [`EMPTY`], far from everything). Continuous joints are wrapped values, so their
+/// difference needs one correction at most.
 #[inline(always)]
-fn leaf_distances(
-    coords: &[f32],
-    q: &[f32],
-    continuous: &[bool],
-    blocks: usize,
-    out: &mut [f32; SLOTS],
-) -> f32 {
+fn leaf_nearest(coords: &[f32], q: &[f32], continuous: &[bool], blocks: usize) -> (f32, usize) {
     use std::f32::consts::{PI, TAU};
     const B: usize = 8;
-    let used = blocks * B;
-    out[..used].fill(0.0);
-    for (j, &qj) in q.iter().enumerate() {
-        let column = &coords[j * SLOTS..][..used];
-        let out = &mut out[..used];
-        if continuous[j] {
-            for (o, &c) in out.iter_mut().zip(column) {
-                let d = qj - c;
-                let d = if d > PI {
-                    d - TAU
-                } else if d < -PI {
-                    d + TAU
-                } else {
-                    d
-                };
-                *o += d * d;
-            }
-        } else {
-            for (o, &c) in out.iter_mut().zip(column) {
-                let d = qj - c;
-                *o += d * d;
-            }
-        }
-    }
     let mut least = [f32::INFINITY; B];
-    for chunk in out[..used].chunks_exact(B) {
-        for k in 0..B {
-            least[k] = if chunk[k] < least[k] {
-                chunk[k]
+    let mut block_of = [0u32; B];
+    for block in 0..blocks {
+        let mut sum = [0.0f32; B];
+        for (j, &qj) in q.iter().enumerate() {
+            let column: &[f32; B] = coords[j * SLOTS + block * B..][..B]
+                .try_into()
+                .expect("eight slots");
+            if continuous[j] {
+                for k in 0..B {
+                    let d = qj - column[k];
+                    let over = if d > PI { TAU } else { 0.0 };
+                    let under = if d < -PI { TAU } else { 0.0 };
+                    let d = (d - over) + under;
+                    sum[k] += d * d;
+                }
             } else {
-                least[k]
-            };
+                for k in 0..B {
+                    let d = qj - column[k];
+                    sum[k] += d * d;
+                }
+            }
+        }
+        // Strictly less: a lane keeps its earliest block at a tie.
+        for k in 0..B {
+            let closer = sum[k] < least[k];
+            least[k] = if closer { sum[k] } else { least[k] };
+            block_of[k] = if closer { block as u32 } else { block_of[k] };
         }
     }
-    least.into_iter().fold(f32::INFINITY, f32::min)
+    first_least(&least, &block_of)
 }
 
+/// The least of the lanes' least values, and of the slots holding it (lane `k` of block
+/// `block_of[k]`) the first.
+#[inline(always)]
+fn first_least(least: &[f32; 8], block_of: &[u32; 8]) -> (f32, usize) {
+    let value = least.iter().copied().fold(f32::INFINITY, f32::min);
+    let slot = (0..8)
+        .filter(|&k| least[k] == value)
+        .map(|k| block_of[k] as usize * 8 + k)
+        .min()
+        .unwrap_or(0);
+    (value, slot)
+}
+
+/// [`leaf_nearest`] in AVX2 registers: the same operations in the same order (no fused
+/// multiply-add), so the same answer.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn leaf_distances_avx2(
+unsafe fn leaf_nearest_avx2(
     coords: &[f32],
     q: &[f32],
     continuous: &[bool],
     blocks: usize,
-    out: &mut [f32; SLOTS],
-) -> f32 {
-    leaf_distances(coords, q, continuous, blocks, out)
+) -> (f32, usize) {
+    use std::arch::x86_64::*;
+    use std::f32::consts::{PI, TAU};
+    let dof = q.len().min(continuous.len());
+    assert!(blocks * 8 <= SLOTS && coords.len() >= dof * SLOTS);
+    let (pi, minus_pi, tau) = (_mm256_set1_ps(PI), _mm256_set1_ps(-PI), _mm256_set1_ps(TAU));
+    let mut least = _mm256_set1_ps(f32::INFINITY);
+    let mut block_of = _mm256_setzero_si256();
+    for block in 0..blocks {
+        let mut sum = _mm256_setzero_ps();
+        for j in 0..dof {
+            // SAFETY: j < dof and block < blocks, so the eight values lie inside `coords`
+            // (asserted above).
+            let c = _mm256_loadu_ps(coords.as_ptr().add(j * SLOTS + block * 8));
+            let mut d = _mm256_sub_ps(_mm256_set1_ps(q[j]), c);
+            if continuous[j] {
+                // d − 2π above π, d + 2π below −π: the kernel's one correction, without
+                // branches.
+                let over = _mm256_and_ps(_mm256_cmp_ps::<_CMP_GT_OQ>(d, pi), tau);
+                let under = _mm256_and_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(d, minus_pi), tau);
+                d = _mm256_add_ps(_mm256_sub_ps(d, over), under);
+            }
+            sum = _mm256_add_ps(sum, _mm256_mul_ps(d, d));
+        }
+        let closer = _mm256_cmp_ps::<_CMP_LT_OQ>(sum, least);
+        least = _mm256_blendv_ps(least, sum, closer);
+        let this = _mm256_set1_epi32(block as i32);
+        block_of = _mm256_blendv_epi8(block_of, this, _mm256_castps_si256(closer));
+    }
+    let mut values = [0.0f32; 8];
+    let mut block_numbers = [0u32; 8];
+    _mm256_storeu_ps(values.as_mut_ptr(), least);
+    _mm256_storeu_si256(block_numbers.as_mut_ptr().cast(), block_of);
+    first_least(&values, &block_numbers)
 }
 
 fn has_avx2() -> bool {
@@ -475,6 +502,39 @@ mod tests {
                     let direct = dist2(&points[got as usize], &q, &cont);
                     assert!((direct - truth).abs() < 1e-9);
                 }
+            }
+        }
+    }
+
+    #[test]
+    fn vector_kernel_equals_the_portable_one() {
+        #[cfg(target_arch = "x86_64")]
+        if has_avx2() {
+            let mut rng = rand::rngs::StdRng::seed_from_u64(11);
+            let continuous = [false, true, false, true, false, true, false, true];
+            for _ in 0..2000 {
+                let blocks = rng.random_range(1..=SLOTS / 8);
+                let mut coords = vec![EMPTY; continuous.len() * SLOTS];
+                let filled = rng.random_range(1..=blocks * 8);
+                for j in 0..continuous.len() {
+                    for k in 0..filled {
+                        // Few distinct values, so ties between slots are common.
+                        coords[j * SLOTS + k] = rng.random_range(-4..=4) as f32 * 0.75;
+                    }
+                }
+                // Duplicates of slots in the same lane of an earlier block: exact ties.
+                for k in 8..filled {
+                    if rng.random_bool(0.3) {
+                        for j in 0..continuous.len() {
+                            coords[j * SLOTS + k] = coords[j * SLOTS + k % 8];
+                        }
+                    }
+                }
+                let q: Vec<f32> = (0..8).map(|_| rng.random_range(-3.2..3.2)).collect();
+                let portable = leaf_nearest(&coords, &q, &continuous, blocks);
+                // SAFETY: the CPU has AVX2.
+                let vector = unsafe { leaf_nearest_avx2(&coords, &q, &continuous, blocks) };
+                assert_eq!(portable, vector);
             }
         }
     }
