@@ -18,7 +18,7 @@ use std::f64::consts::TAU;
 
 /// Points per leaf before it splits (one less than a multiple of eight, so a leaf's slots
 /// fill whole vectors).
-pub const LEAF: usize = 127;
+pub const LEAF: usize = 255;
 
 /// Slots per leaf: one more than [`LEAF`], for the point that triggers the split.
 const SLOTS: usize = LEAF + 1;
@@ -71,10 +71,10 @@ impl NearestIndex {
             split: Vec::with_capacity(16),
             lo: Vec::with_capacity(16 * dof),
             hi: Vec::with_capacity(16 * dof),
-            coords: Vec::with_capacity(4 * SLOTS * dof),
-            lanes: Vec::with_capacity(4 * SLOTS * dof),
-            ids: Vec::with_capacity(4 * SLOTS),
-            len: Vec::with_capacity(4),
+            coords: Vec::with_capacity(2 * SLOTS * dof),
+            lanes: Vec::with_capacity(2 * SLOTS * dof),
+            ids: Vec::with_capacity(2 * SLOTS),
+            len: Vec::with_capacity(2),
             stack: Vec::with_capacity(64),
             target: vec![0.0; dof],
             target32: vec![0.0; dof],
