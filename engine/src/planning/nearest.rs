@@ -128,12 +128,20 @@ impl NearestIndex {
         self.wrapped(target, &mut q);
         let mut stack = std::mem::take(&mut self.stack);
         stack.clear();
-        stack.push((0, 0.0));
         let mut best = (f64::INFINITY, NONE);
         let mut best_slot = (0, 0);
         let mut q32 = std::mem::take(&mut self.target32);
         for (l, &v) in q32.iter_mut().zip(q.iter()) {
             *l = v as f32;
+        }
+        match self.children[0] {
+            // A tree of one bucket (most trees, most of the time): no walk.
+            [NONE, leaf] => {
+                let (d2, k) = self.leaf_nearest(leaf as usize, &q32);
+                best = (d2 as f64, self.ids[leaf as usize * SLOTS + k]);
+                best_slot = (leaf as usize, k);
+            }
+            _ => stack.push((0, 0.0)),
         }
         while let Some((at, bound)) = stack.pop() {
             if bound >= best.0 {
@@ -382,13 +390,20 @@ fn leaf_nearest(coords: &[f32], q: &[f32], continuous: &[bool], blocks: usize) -
 /// `block_of[k]`) the first.
 #[inline(always)]
 fn first_least(least: &[f32; 8], block_of: &[u32; 8]) -> (f32, usize) {
-    let value = least.iter().copied().fold(f32::INFINITY, f32::min);
-    let slot = (0..8)
-        .filter(|&k| least[k] == value)
-        .map(|k| block_of[k] as usize * 8 + k)
-        .min()
-        .unwrap_or(0);
-    (value, slot)
+    // Halving, with plain comparisons (the values are never NaN).
+    let min = |a: f32, b: f32| if a < b { a } else { b };
+    let half: [f32; 4] = std::array::from_fn(|k| min(least[k], least[k + 4]));
+    let value = min(min(half[0], half[2]), min(half[1], half[3]));
+    let mut slot = u32::MAX;
+    for k in 0..8 {
+        let here = if least[k] == value {
+            block_of[k] * 8 + k as u32
+        } else {
+            u32::MAX
+        };
+        slot = slot.min(here);
+    }
+    (value, if slot == u32::MAX { 0 } else { slot as usize })
 }
 
 /// [`leaf_nearest`] in AVX2 registers: the same operations in the same order (no fused
