@@ -645,23 +645,20 @@ impl BatchChecker {
         false
     }
 
-    /// True when a sphere of cluster `ca` overlaps one of cluster `cb` in some lane (both
-    /// placed).
+    /// True when a sphere of cluster `ca` (placed) overlaps one of cluster `cb` of link `b`
+    /// in some lane; `cb`'s spheres are placed only if a sphere of `ca` reaches its bound.
     #[inline(always)]
     fn spheres_touch(&mut self, b: usize, ca: usize, cb: usize) -> bool {
         let (pb, crb) = (self.cluster_at[cb], self.cluster[cb].1);
         let range_a = self.cluster[ca].2.clone();
-        let mut first = true;
         for i in range_a {
             let (pi, ri) = (self.sphere_at[i], self.sphere[i].1);
             // A sphere clear of the other cluster's bound is clear of its spheres.
             if !overlap(pi, ri, pb, crb) {
                 continue;
             }
-            if first {
-                self.place_spheres(b, cb);
-                first = false;
-            }
+            // Stamped: placed once per batch however often it is asked.
+            self.place_spheres(b, cb);
             let range_b = self.cluster[cb].2.clone();
             let (at_b, model_b) = (&self.sphere_at[range_b.clone()], &self.sphere[range_b]);
             for (&pj, &(_, rj)) in at_b.iter().zip(model_b) {
