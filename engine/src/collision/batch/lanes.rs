@@ -251,6 +251,18 @@ impl Pose8 {
         ]
     }
 
+    /// Lane points `p` in this frame: the inverse transform, `rᵀ (p − t)`.
+    #[inline(always)]
+    pub fn apply_inverse(&self, p: [F8; 3]) -> [F8; 3] {
+        let a = &self.r;
+        let d = [p[0] - self.t[0], p[1] - self.t[1], p[2] - self.t[2]];
+        [
+            a[0] * d[0] + a[3] * d[1] + a[6] * d[2],
+            a[1] * d[0] + a[4] * d[1] + a[7] * d[2],
+            a[2] * d[0] + a[5] * d[1] + a[8] * d[2],
+        ]
+    }
+
     /// The image of the fixed point `c` (the same in every lane).
     #[inline(always)]
     pub fn apply_const(&self, c: [f32; 3]) -> [F8; 3] {

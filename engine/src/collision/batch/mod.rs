@@ -5,7 +5,9 @@
 //! are placed as lanes only where needed, down the same hierarchy as the scalar
 //! [`SphereChecker`](super::SphereChecker): a link's bounding sphere, then its clusters, then
 //! its spheres, against the objects whose world boxes the link's eight bounds reach, and over
-//! the self-collision pairs. The first lane in contact ends the check. Links that never move
+//! the self-collision pairs (where a long or flat link's box around its spheres, tighter than
+//! its ball, clears most pairs a torso or a base would otherwise pass down to the clusters).
+//! The first lane in contact ends the check. Links that never move
 //! are not checked against the environment: the scalar checker decides that once, exactly
 //! ([`SphereChecker::blocked`](super::SphereChecker::blocked)), and the planner does not use
 //! this checker when it is so.
@@ -82,6 +84,10 @@ pub struct BatchChecker {
     moving: Vec<usize>,
     /// Per link: bound centre (link frame) and radius (+ margin), if it has spheres.
     bound: Vec<Option<([f32; 3], f32)>>,
+    /// Per link: the box (lower and upper corners, in the frame it rides in) around its
+    /// spheres, margin included. Tighter than the bound ball for long or flat links (a
+    /// torso, a base): self-collision pairs test the other link's ball against it.
+    bound_box: Vec<([f32; 3], [f32; 3])>,
     /// Per link: its clusters.
     link_clusters: Vec<std::ops::Range<usize>>,
     /// Per cluster: centre, radius (+ margin), spheres.
@@ -96,6 +102,9 @@ pub struct BatchChecker {
     map: Option<Arc<OccupancyMap>>,
     /// Self-collision pairs with a moving link, both with spheres, and their bound radii.
     pairs: Vec<(usize, usize, f32, f32)>,
+    /// Per pair: whether `a`'s box, and `b`'s, are worth testing after the bound balls
+    /// (decided by sampling, [`BatchChecker::choose_boxes`]).
+    pair_boxes: Vec<(bool, bool)>,
     /// Per-batch state.
     poses: Vec<Pose8>,
     bounds: Vec<[F8; 3]>,
@@ -196,8 +205,24 @@ impl BatchChecker {
                 (place(l, model.center[s]), f(model.radius[s]) + MARGIN)
             })
             .collect();
+        let bound_box = model
+            .link_clusters
+            .iter()
+            .map(|clusters| {
+                let mut lo = [f32::INFINITY; 3];
+                let mut hi = [f32::NEG_INFINITY; 3];
+                let spheres = clusters.clone().flat_map(|ci| cluster[ci].2.clone());
+                for (c, r) in spheres.map(|s| sphere[s]) {
+                    for i in 0..3 {
+                        lo[i] = lo[i].min(c[i] - r);
+                        hi[i] = hi[i].max(c[i] + r);
+                    }
+                }
+                (lo, hi)
+            })
+            .collect();
         let (moving_pairs, _) = robot.partition_pairs();
-        let pairs = moving_pairs
+        let pairs: Vec<_> = moving_pairs
             .into_iter()
             .filter_map(|(a, b)| Some((a, b, bound[a]?.1, bound[b]?.1)))
             .collect();
@@ -217,12 +242,14 @@ impl BatchChecker {
             posed,
             moving,
             bound,
+            bound_box,
             link_clusters: model.link_clusters.clone(),
             cluster,
             sphere,
             objects: Vec::new(),
             object_boxes: Vec::new(),
             map: None,
+            pair_boxes: vec![(false, false); pairs.len()],
             pairs,
             poses: vec![Pose8::default(); n_links],
             bounds: vec![[F8::default(); 3]; n_links],
@@ -254,7 +281,47 @@ impl BatchChecker {
             }
         }
         sut.epoch = 0;
+        sut.choose_boxes(robot);
         Some(sut)
+    }
+
+    /// Decides per self-collision pair which link boxes to test: a box is tested after the
+    /// bound balls overlap when, over random configurations, it clears at least a fifth of
+    /// those overlaps (a torso's or a base's box clears most; a compact link's box costs more
+    /// than it saves, and a one-sphere link's box clears nothing). The verdicts are the same
+    /// either way; only the work differs.
+    fn choose_boxes(&mut self, robot: &Robot) {
+        use rand::SeedableRng;
+        const SAMPLES: usize = 512;
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(0x5eed);
+        let mut q = vec![0.0; self.dof];
+        // Per pair: ball overlaps, and those `a`'s box and `b`'s box clear. One configuration
+        // in every lane: a batch's states are close together (an edge's).
+        let mut tally = vec![[0u32; 3]; self.pairs.len()];
+        for _ in 0..SAMPLES {
+            robot.sample_uniform(&mut rng, &mut q);
+            for (j, &v) in q.iter().enumerate() {
+                self.lanes[j] = F8::splat(v as f32);
+            }
+            for k in 0..self.posed.len() {
+                self.fk_link(self.posed[k]);
+            }
+            for k in 0..self.moving.len() {
+                self.place_bound(self.moving[k]);
+            }
+            for (t, &(a, b, ra, rb)) in tally.iter_mut().zip(&self.pairs) {
+                let (ba, bb) = (self.bounds[a], self.bounds[b]);
+                if overlap(ba, ra, bb, rb) {
+                    t[0] += 1;
+                    t[1] += u32::from(!self.box_reached(a, bb, rb));
+                    t[2] += u32::from(!self.box_reached(b, ba, ra));
+                }
+            }
+        }
+        self.pair_boxes = tally
+            .iter()
+            .map(|&[n, a, b]| (5 * a >= n && a > 0, 5 * b >= n && b > 0))
+            .collect();
     }
 
     /// A copy of this checker in `env`; `None` when it holds more than 64 objects.
@@ -605,8 +672,12 @@ impl BatchChecker {
     fn self_contact(&mut self) -> bool {
         for k in 0..self.pairs.len() {
             let (a, b, ra, rb) = self.pairs[k];
+            let (box_a, box_b) = self.pair_boxes[k];
             let (ba, bb) = (self.bounds[a], self.bounds[b]);
-            if !overlap(ba, ra, bb, rb) {
+            if !overlap(ba, ra, bb, rb)
+                || (box_a && !self.box_reached(a, bb, rb))
+                || (box_b && !self.box_reached(b, ba, ra))
+            {
                 continue;
             }
             // The clusters of `b` within reach of `a`'s bound, as bits (at most 64 per link).
@@ -614,7 +685,8 @@ impl BatchChecker {
             let mut near_b = 0u64;
             for (bit, cb) in clusters_b.clone().enumerate() {
                 self.place_cluster(b, cb);
-                if overlap(self.cluster_at[cb], self.cluster[cb].1, ba, ra) {
+                let (pb, crb) = (self.cluster_at[cb], self.cluster[cb].1);
+                if overlap(pb, crb, ba, ra) && (!box_a || self.box_reached(a, pb, crb)) {
                     near_b |= 1 << bit;
                 }
             }
@@ -624,7 +696,7 @@ impl BatchChecker {
             for ca in self.link_clusters[a].clone() {
                 self.place_cluster(a, ca);
                 let (pa, cra) = (self.cluster_at[ca], self.cluster[ca].1);
-                if !overlap(pa, cra, bb, rb) {
+                if !overlap(pa, cra, bb, rb) || (box_b && !self.box_reached(b, pa, cra)) {
                     continue;
                 }
                 let mut m = near_b;
@@ -643,6 +715,23 @@ impl BatchChecker {
             }
         }
         false
+    }
+
+    /// True when the ball (centres `p` in eight lanes, radius `r`) reaches link `l`'s box in
+    /// some lane.
+    #[inline(always)]
+    fn box_reached(&self, l: usize, p: [F8; 3], r: f32) -> bool {
+        let (lo, hi) = self.bound_box[l];
+        let q = self.poses[self.frame[l]].apply_inverse(p);
+        let zero = F8::splat(0.0);
+        let mut d2 = zero;
+        for i in 0..3 {
+            let gap = (F8::splat(lo[i]) - q[i])
+                .max(q[i] - F8::splat(hi[i]))
+                .max(zero);
+            d2 = d2 + gap * gap;
+        }
+        d2.any_lt(F8::splat(r * r))
     }
 
     /// True when a sphere of cluster `ca` (placed) overlaps one of cluster `cb` of link `b`
