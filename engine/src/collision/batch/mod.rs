@@ -114,8 +114,12 @@ pub struct BatchChecker {
     sphere_stamp: Vec<u32>,
     epoch: u32,
     lanes: Vec<F8>,
-    /// Per variable: the motion's difference (end minus start) being checked.
+    /// Per variable: the start of the motion being checked, and its difference (end minus
+    /// start).
+    start: Vec<f64>,
     delta: Vec<f64>,
+    /// Per lane: the fraction of the motion its state is at.
+    t: [f64; LANES],
     /// States checked so far.
     states: u64,
     avx2: bool,
@@ -260,7 +264,9 @@ impl BatchChecker {
             epoch: 0,
             states: 0,
             lanes: vec![F8::default(); robot.dof()],
+            start: vec![0.0; robot.dof()],
             delta: vec![0.0; robot.dof()],
+            t: [0.0; LANES],
             avx2: has_avx2(),
         };
         // Links that never move have the same pose, bound, clusters and spheres in every
@@ -422,6 +428,7 @@ impl BatchChecker {
         }
         // The states are a + (k / n) · delta; continuous joints need no wrapping here (the
         // kinematics only takes their sine and cosine).
+        self.start.copy_from_slice(a);
         for (j, d) in self.delta.iter_mut().enumerate() {
             *d = robot.joint_delta(j, a[j], b[j]);
         }
@@ -435,7 +442,7 @@ impl BatchChecker {
             batch[filled] = k;
             filled += 1;
             if filled == LANES {
-                if self.states_may_collide(a, n, &batch) && !decide(&batch, n) {
+                if self.states_may_collide(n, &batch) && !decide(&batch, n) {
                     return false;
                 }
                 filled = 0;
@@ -445,7 +452,7 @@ impl BatchChecker {
             for i in filled..LANES {
                 batch[i] = batch[filled - 1];
             }
-            let may_collide = self.states_may_collide(a, n, &batch);
+            let may_collide = self.states_may_collide(n, &batch);
             // Only the distinct states count (the filler repeats the last).
             self.states -= (LANES - filled) as u64;
             if may_collide && !decide(&batch, n) {
@@ -455,23 +462,33 @@ impl BatchChecker {
         true
     }
 
-    fn states_may_collide(&mut self, a: &[f64], n: usize, ks: &[usize; LANES]) -> bool {
+    /// True when any of the states `start + (k / n) · delta` for the eight `ks` may touch
+    /// something.
+    fn states_may_collide(&mut self, n: usize, ks: &[usize; LANES]) -> bool {
         self.states += LANES as u64;
-        let t: [f64; LANES] = std::array::from_fn(|lane| ks[lane] as f64 / n as f64);
-        for (j, (&aj, &dj)) in a.iter().zip(&self.delta).enumerate() {
-            self.lanes[j] = F8(std::array::from_fn(|lane| (aj + t[lane] * dj) as f32));
-        }
-        self.lanes_may_collide()
+        self.t = std::array::from_fn(|lane| ks[lane] as f64 / n as f64);
+        self.lanes_may_collide(true)
     }
 
-    /// True when any of the eight configurations in `self.lanes` may touch something.
-    fn lanes_may_collide(&mut self) -> bool {
+    /// True when any of the eight configurations in `self.lanes` (first written from the
+    /// edge when `from_edge`) may touch something.
+    fn lanes_may_collide(&mut self, from_edge: bool) -> bool {
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: the CPU has AVX2 (checked at construction).
-            return unsafe { self.check_avx2() };
+            return unsafe { self.check_avx2(from_edge) };
         }
-        self.check()
+        self.check(from_edge)
+    }
+
+    /// Writes the lanes from the edge: variable `j` of lane `i` is `start[j] + t[i] · delta[j]`
+    /// (in `f64`, then rounded: the same values on every path).
+    #[inline(always)]
+    fn fill_lanes(&mut self) {
+        let t = self.t;
+        for ((lane, &aj), &dj) in self.lanes.iter_mut().zip(&self.start).zip(&self.delta) {
+            *lane = F8(std::array::from_fn(|i| (aj + t[i] * dj) as f32));
+        }
     }
 
     /// States checked so far (edge states; padding not counted).
@@ -482,17 +499,20 @@ impl BatchChecker {
     /// Checks eight configurations given per variable (`lanes[j]` holds variable `j` of each).
     pub fn may_collide(&mut self, lanes: &[F8]) -> bool {
         self.lanes[..self.dof].copy_from_slice(&lanes[..self.dof]);
-        self.lanes_may_collide()
+        self.lanes_may_collide(false)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn check_avx2(&mut self) -> bool {
-        self.check()
+    unsafe fn check_avx2(&mut self, from_edge: bool) -> bool {
+        self.check(from_edge)
     }
 
     #[inline(always)]
-    fn check(&mut self) -> bool {
+    fn check(&mut self, from_edge: bool) -> bool {
+        if from_edge {
+            self.fill_lanes();
+        }
         self.epoch += 1;
         if self.epoch == STATIC {
             // Stamps start again (those of links that never move stay valid).
