@@ -233,11 +233,19 @@ impl Pose8 {
     /// The rotation `a · self.r` (`a` row-major).
     #[inline(always)]
     pub fn r_after(&self, a: &[F8; 9]) -> [F8; 9] {
+        // Written out: `array::from_fn` left its closure apart from the caller's AVX2.
         let b = &self.r;
-        std::array::from_fn(|e| {
-            let (i, j) = (e / 3, e % 3);
-            a[i * 3] * b[j] + a[i * 3 + 1] * b[3 + j] + a[i * 3 + 2] * b[6 + j]
-        })
+        [
+            dot3(a, b, 0, 0),
+            dot3(a, b, 0, 1),
+            dot3(a, b, 0, 2),
+            dot3(a, b, 1, 0),
+            dot3(a, b, 1, 1),
+            dot3(a, b, 1, 2),
+            dot3(a, b, 2, 0),
+            dot3(a, b, 2, 1),
+            dot3(a, b, 2, 2),
+        ]
     }
 
     /// The image of lane points `p`.
@@ -274,6 +282,12 @@ impl Pose8 {
             a[6] * x + a[7] * y + a[8] * z + self.t[2],
         ]
     }
+}
+
+/// Entry `(i, j)` of the product `a · b` of row-major rotations.
+#[inline(always)]
+fn dot3(a: &[F8; 9], b: &[F8; 9], i: usize, j: usize) -> F8 {
+    a[i * 3] * b[j] + a[i * 3 + 1] * b[3 + j] + a[i * 3 + 2] * b[6 + j]
 }
 
 #[cfg(test)]
