@@ -57,37 +57,16 @@ impl F8 {
         self.map(f32::sqrt)
     }
 
-    /// Bit `k` set where lane `k` of `self` is below lane `k` of `o`.
-    #[inline(always)]
-    pub fn lt_mask(self, o: F8) -> u32 {
-        #[cfg(target_arch = "x86_64")]
-        {
-            use std::arch::x86_64::_mm_cmplt_ps;
-            // SAFETY: SSE is part of the x86-64 baseline.
-            self.mask_by(o, |a, b| unsafe { _mm_cmplt_ps(a, b) })
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        self.mask_by(o, |a, b| a < b)
-    }
-
-    /// True when some lane of `self` is below the same lane of `o`.
+    /// True when some lane of `self` is below the same lane of `o`, for finite lanes and
+    /// `self` not negative zero (squared distances against squared radii): the sign bits of
+    /// the differences, or-ed across the lanes. It stays in vector registers, where a move
+    /// mask of the halves would store the vector and load it back.
     #[inline(always)]
     pub fn any_lt(self, o: F8) -> bool {
-        #[cfg(target_arch = "x86_64")]
-        {
-            use std::arch::x86_64::{_mm_cmplt_ps, _mm_load_ps, _mm_movemask_ps, _mm_or_ps};
-            // SAFETY: as in `mask_by`.
-            unsafe {
-                let (a, b) = (self.0.as_ptr(), o.0.as_ptr());
-                let lo = _mm_cmplt_ps(_mm_load_ps(a), _mm_load_ps(b));
-                let hi = _mm_cmplt_ps(_mm_load_ps(a.add(4)), _mm_load_ps(b.add(4)));
-                _mm_movemask_ps(_mm_or_ps(lo, hi)) != 0
-            }
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        {
-            self.lt_mask(o) != 0
-        }
+        let d = self - o;
+        let bits = d.0.map(f32::to_bits);
+        let half: [u32; 4] = std::array::from_fn(|k| bits[k] | bits[k + 4]);
+        ((half[0] | half[2]) | (half[1] | half[3])) >> 31 != 0
     }
 
     /// Bit `k` set where lane `k` of `self` is at most lane `k` of `o`.
