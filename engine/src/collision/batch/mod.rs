@@ -102,8 +102,7 @@ pub struct BatchChecker {
     map: Option<Arc<OccupancyMap>>,
     /// Self-collision pairs with a moving link, both with spheres, and their bound radii.
     pairs: Vec<(usize, usize, f32, f32)>,
-    /// Per pair: whether `a`'s box, and `b`'s, are worth testing after the bound balls
-    /// (decided by sampling, [`BatchChecker::choose_boxes`]).
+    /// Per pair: whether `a`'s box, and `b`'s, are worth testing after the bound balls.
     pair_boxes: Vec<(bool, bool)>,
     /// Per-batch state.
     poses: Vec<Pose8>,
@@ -209,7 +208,7 @@ impl BatchChecker {
                 (place(l, model.center[s]), f(model.radius[s]) + MARGIN)
             })
             .collect();
-        let bound_box = model
+        let bound_box: Vec<([f32; 3], [f32; 3])> = model
             .link_clusters
             .iter()
             .map(|clusters| {
@@ -223,6 +222,16 @@ impl BatchChecker {
                     }
                 }
                 (lo, hi)
+            })
+            .collect();
+        // A link's box is worth testing when it is smaller than its ball (it is not for a
+        // one-sphere link, whose box holds its ball).
+        let box_worth: Vec<bool> = bound_box
+            .iter()
+            .zip(&bound)
+            .map(|((lo, hi), b)| {
+                let volume: f32 = (0..3).map(|i| (hi[i] - lo[i]).max(0.0)).product();
+                b.is_some_and(|(_, r)| volume < 4.0 / 3.0 * std::f32::consts::PI * r * r * r)
             })
             .collect();
         let (moving_pairs, _) = robot.partition_pairs();
@@ -253,7 +262,10 @@ impl BatchChecker {
             objects: Vec::new(),
             object_boxes: Vec::new(),
             map: None,
-            pair_boxes: vec![(false, false); pairs.len()],
+            pair_boxes: pairs
+                .iter()
+                .map(|&(a, b, _, _)| (box_worth[a], box_worth[b]))
+                .collect(),
             pairs,
             poses: vec![Pose8::default(); n_links],
             bounds: vec![[F8::default(); 3]; n_links],
@@ -287,47 +299,7 @@ impl BatchChecker {
             }
         }
         sut.epoch = 0;
-        sut.choose_boxes(robot);
         Some(sut)
-    }
-
-    /// Decides per self-collision pair which link boxes to test: a box is tested after the
-    /// bound balls overlap when, over random configurations, it clears at least a fifth of
-    /// those overlaps (a torso's or a base's box clears most; a compact link's box costs more
-    /// than it saves, and a one-sphere link's box clears nothing). The verdicts are the same
-    /// either way; only the work differs.
-    fn choose_boxes(&mut self, robot: &Robot) {
-        use rand::SeedableRng;
-        const SAMPLES: usize = 512;
-        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(0x5eed);
-        let mut q = vec![0.0; self.dof];
-        // Per pair: ball overlaps, and those `a`'s box and `b`'s box clear. One configuration
-        // in every lane: a batch's states are close together (an edge's).
-        let mut tally = vec![[0u32; 3]; self.pairs.len()];
-        for _ in 0..SAMPLES {
-            robot.sample_uniform(&mut rng, &mut q);
-            for (j, &v) in q.iter().enumerate() {
-                self.lanes[j] = F8::splat(v as f32);
-            }
-            for k in 0..self.posed.len() {
-                self.fk_link(self.posed[k]);
-            }
-            for k in 0..self.moving.len() {
-                self.place_bound(self.moving[k]);
-            }
-            for (t, &(a, b, ra, rb)) in tally.iter_mut().zip(&self.pairs) {
-                let (ba, bb) = (self.bounds[a], self.bounds[b]);
-                if overlap(ba, ra, bb, rb) {
-                    t[0] += 1;
-                    t[1] += u32::from(!self.box_reached(a, bb, rb));
-                    t[2] += u32::from(!self.box_reached(b, ba, ra));
-                }
-            }
-        }
-        self.pair_boxes = tally
-            .iter()
-            .map(|&[n, a, b]| (5 * a >= n && a > 0, 5 * b >= n && b > 0))
-            .collect();
     }
 
     /// A copy of this checker in `env`; `None` when it holds more than 64 objects.
