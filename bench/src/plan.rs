@@ -23,9 +23,11 @@ use ember_engine::planning::PlanError;
 use ember_engine::planning::{self, PlanRequest, PlannerParams, UniformSampler};
 use ember_engine::problems::ProblemSet;
 use ember_engine::robot::{Robot, RobotArgs};
+use ember_engine::scene::AttachedObject;
 use ember_engine::world::map::{MapParams, OccupancyMap};
 use ember_engine::world::Environment;
 use ember_sdk::stats::summary;
+use std::borrow::Cow;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -94,6 +96,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let mut tally = Tally::default();
         let mut objects_only = Tally::default();
         let mut map_ms = Vec::new();
+        // The robot with the joints outside the group (fingers, head) as a problem's start
+        // state sets them, kept while the next problem sets them alike: a daemon keeps its
+        // robot between requests, and a copy derives its checkers' robot data on first use.
+        let mut copy: Option<(&[(String, f64)], &[AttachedObject], Robot)> = None;
         for p in &set.problems {
             let env = match &args.clouds {
                 None => p.scene.environment()?,
@@ -114,7 +120,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     env
                 }
             };
-            let robot = p.scene.robot_with(&robot, &p.request.start_joints)?;
+            let (joints, attached) = (&p.request.start_joints[..], &p.scene.attached[..]);
+            let robot = match &copy {
+                Some((j, a, r)) if *j == joints && *a == attached => r,
+                _ => match p.scene.robot_with(&robot, joints)? {
+                    Cow::Borrowed(r) => r,
+                    Cow::Owned(r) => &copy.insert((joints, attached, r)).2,
+                },
+            };
             let req = PlanRequest {
                 start: p.request.start.clone(),
                 goal: p.request.goal.clone(),
