@@ -99,7 +99,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         // The robot with the joints outside the group (fingers, head) as a problem's start
         // state sets them, kept while the next problem sets them alike: a daemon keeps its
         // robot between requests, and a copy derives its checkers' robot data on first use.
-        let mut copy: Option<(&[(String, f64)], &[AttachedObject], Robot)> = None;
+        let mut copy: Option<RobotCopy> = None;
         for p in &set.problems {
             let env = match &args.clouds {
                 None => p.scene.environment()?,
@@ -140,9 +140,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 },
             };
             if args.map_compare {
-                objects_only.plan(&robot, &p.scene.environment()?, &req, args.time_limit);
+                objects_only.plan(robot, &p.scene.environment()?, &req, args.time_limit);
             }
-            tally.plan(&robot, &env, &req, args.time_limit);
+            tally.plan(robot, &env, &req, args.time_limit);
         }
         let cloud_keys = if args.clouds.is_some() {
             let (map_median, _, _) = summary(&mut map_ms);
@@ -246,6 +246,9 @@ impl Tally {
         )
     }
 }
+
+/// A robot copy and the start-state joints and attached objects it was derived with.
+type RobotCopy<'p> = (&'p [(String, f64)], &'p [AttachedObject], Robot);
 
 /// The points of an ASCII PCD file (x y z first) as occupied voxels of a map, with its
 /// clearance grid built (map building is not planning time).
