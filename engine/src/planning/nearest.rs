@@ -351,7 +351,7 @@ impl NearestIndex {
 /// difference needs one correction at most.
 #[inline(always)]
 fn leaf_nearest(coords: &[f32], q: &[f32], continuous: &[bool], blocks: usize) -> (f32, usize) {
-    use std::f32::consts::{PI, TAU};
+    use std::f32::consts::TAU;
     const B: usize = 8;
     let mut least = [f32::INFINITY; B];
     let mut block_of = [0u32; B];
@@ -363,10 +363,10 @@ fn leaf_nearest(coords: &[f32], q: &[f32], continuous: &[bool], blocks: usize) -
                 .expect("eight slots");
             if continuous[j] {
                 for k in 0..B {
-                    let d = qj - column[k];
-                    let over = if d > PI { TAU } else { 0.0 };
-                    let under = if d < -PI { TAU } else { 0.0 };
-                    let d = (d - over) + under;
+                    // The way around the circle when shorter: |d| or 2π − |d|.
+                    let d = (qj - column[k]).abs();
+                    let around = TAU - d;
+                    let d = if around < d { around } else { d };
                     sum[k] += d * d;
                 }
             } else {
@@ -417,10 +417,10 @@ unsafe fn leaf_nearest_avx2(
     blocks: usize,
 ) -> (f32, usize) {
     use std::arch::x86_64::*;
-    use std::f32::consts::{PI, TAU};
+    use std::f32::consts::TAU;
     let dof = q.len().min(continuous.len());
     assert!(blocks * 8 <= SLOTS && coords.len() >= dof * SLOTS);
-    let (pi, minus_pi, tau) = (_mm256_set1_ps(PI), _mm256_set1_ps(-PI), _mm256_set1_ps(TAU));
+    let (sign, tau) = (_mm256_set1_ps(-0.0), _mm256_set1_ps(TAU));
     let mut least = _mm256_set1_ps(f32::INFINITY);
     let mut block_of = _mm256_setzero_si256();
     for block in 0..blocks {
@@ -431,11 +431,10 @@ unsafe fn leaf_nearest_avx2(
             let c = _mm256_loadu_ps(coords.as_ptr().add(j * SLOTS + block * 8));
             let mut d = _mm256_sub_ps(_mm256_set1_ps(q[j]), c);
             if continuous[j] {
-                // d − 2π above π, d + 2π below −π: the kernel's one correction, without
-                // branches.
-                let over = _mm256_and_ps(_mm256_cmp_ps::<_CMP_GT_OQ>(d, pi), tau);
-                let under = _mm256_and_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(d, minus_pi), tau);
-                d = _mm256_add_ps(_mm256_sub_ps(d, over), under);
+                // The way around the circle when shorter: |d| or 2π − |d| (the sign bit
+                // cleared for |d|).
+                d = _mm256_andnot_ps(sign, d);
+                d = _mm256_min_ps(d, _mm256_sub_ps(tau, d));
             }
             sum = _mm256_add_ps(sum, _mm256_mul_ps(d, d));
         }
