@@ -57,10 +57,10 @@ impl F8 {
         self.map(f32::sqrt)
     }
 
-    /// True when some lane of `self` is below the same lane of `o`, for finite lanes and
-    /// `self` not negative zero (squared distances against squared radii): the sign bits of
-    /// the differences, or-ed across the lanes. It stays in vector registers, where a move
-    /// mask of the halves would store the vector and load it back.
+    /// True when some lane of `self` is below the same lane of `o`, for finite lanes and `o`
+    /// not zero (squared distances against squared radii): the sign bits of the
+    /// differences, or-ed across the lanes. It stays in vector registers, where a move mask
+    /// of the halves would store the vector and load it back.
     #[inline(always)]
     pub fn any_lt(self, o: F8) -> bool {
         let d = self - o;

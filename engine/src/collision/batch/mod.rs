@@ -85,9 +85,10 @@ pub struct BatchChecker {
     /// Per link: bound centre (link frame) and radius (+ margin), if it has spheres.
     bound: Vec<Option<([f32; 3], f32)>>,
     /// Per link: the box (lower and upper corners, in the frame it rides in) around its
-    /// spheres, margin included. Tighter than the bound ball for long or flat links (a
-    /// torso, a base): self-collision pairs test the other link's ball against it.
-    bound_box: Vec<([f32; 3], [f32; 3])>,
+    /// spheres, margin included, when it is smaller than the bound ball (a long or flat
+    /// link: a torso, a base; not a one-sphere link, whose box holds its ball).
+    /// Self-collision pairs test the other link's ball against it.
+    bound_box: Vec<Option<([f32; 3], [f32; 3])>>,
     /// Per link: its clusters.
     link_clusters: Vec<std::ops::Range<usize>>,
     /// Per cluster: centre, radius (+ margin), spheres.
@@ -102,8 +103,6 @@ pub struct BatchChecker {
     map: Option<Arc<OccupancyMap>>,
     /// Self-collision pairs with a moving link, both with spheres, and their bound radii.
     pairs: Vec<(usize, usize, f32, f32)>,
-    /// Per pair: whether `a`'s box, and `b`'s, are worth testing after the bound balls.
-    pair_boxes: Vec<(bool, bool)>,
     /// Per-batch state.
     poses: Vec<Pose8>,
     bounds: Vec<[F8; 3]>,
@@ -117,8 +116,6 @@ pub struct BatchChecker {
     /// start).
     start: Vec<f64>,
     delta: Vec<f64>,
-    /// Per lane: the fraction of the motion its state is at.
-    t: [f64; LANES],
     /// States checked so far.
     states: u64,
     avx2: bool,
@@ -208,34 +205,27 @@ impl BatchChecker {
                 (place(l, model.center[s]), f(model.radius[s]) + MARGIN)
             })
             .collect();
-        let bound_box: Vec<([f32; 3], [f32; 3])> = model
+        let bound_box = model
             .link_clusters
             .iter()
-            .map(|clusters| {
+            .zip(&bound)
+            .map(|(clusters, b)| {
+                let (_, r) = (*b)?;
                 let mut lo = [f32::INFINITY; 3];
                 let mut hi = [f32::NEG_INFINITY; 3];
                 let spheres = clusters.clone().flat_map(|ci| cluster[ci].2.clone());
-                for (c, r) in spheres.map(|s| sphere[s]) {
+                for (c, rs) in spheres.map(|s| sphere[s]) {
                     for i in 0..3 {
-                        lo[i] = lo[i].min(c[i] - r);
-                        hi[i] = hi[i].max(c[i] + r);
+                        lo[i] = lo[i].min(c[i] - rs);
+                        hi[i] = hi[i].max(c[i] + rs);
                     }
                 }
-                (lo, hi)
-            })
-            .collect();
-        // A link's box is worth testing when it is smaller than its ball (it is not for a
-        // one-sphere link, whose box holds its ball).
-        let box_worth: Vec<bool> = bound_box
-            .iter()
-            .zip(&bound)
-            .map(|((lo, hi), b)| {
-                let volume: f32 = (0..3).map(|i| (hi[i] - lo[i]).max(0.0)).product();
-                b.is_some_and(|(_, r)| volume < 4.0 / 3.0 * std::f32::consts::PI * r * r * r)
+                let volume: f32 = (0..3).map(|i| hi[i] - lo[i]).product();
+                (volume < 4.0 / 3.0 * std::f32::consts::PI * r * r * r).then_some((lo, hi))
             })
             .collect();
         let (moving_pairs, _) = robot.partition_pairs();
-        let pairs: Vec<_> = moving_pairs
+        let pairs = moving_pairs
             .into_iter()
             .filter_map(|(a, b)| Some((a, b, bound[a]?.1, bound[b]?.1)))
             .collect();
@@ -262,10 +252,6 @@ impl BatchChecker {
             objects: Vec::new(),
             object_boxes: Vec::new(),
             map: None,
-            pair_boxes: pairs
-                .iter()
-                .map(|&(a, b, _, _)| (box_worth[a], box_worth[b]))
-                .collect(),
             pairs,
             poses: vec![Pose8::default(); n_links],
             bounds: vec![[F8::default(); 3]; n_links],
@@ -278,7 +264,6 @@ impl BatchChecker {
             lanes: vec![F8::default(); robot.dof()],
             start: vec![0.0; robot.dof()],
             delta: vec![0.0; robot.dof()],
-            t: [0.0; LANES],
             avx2: has_avx2(),
         };
         // Links that never move have the same pose, bound, clusters and spheres in every
@@ -438,26 +423,25 @@ impl BatchChecker {
     /// something.
     fn states_may_collide(&mut self, n: usize, ks: &[usize; LANES]) -> bool {
         self.states += LANES as u64;
-        self.t = std::array::from_fn(|lane| ks[lane] as f64 / n as f64);
-        self.lanes_may_collide(true)
+        let t = std::array::from_fn(|lane| ks[lane] as f64 / n as f64);
+        self.lanes_may_collide(Some(&t))
     }
 
     /// True when any of the eight configurations in `self.lanes` (first written from the
-    /// edge when `from_edge`) may touch something.
-    fn lanes_may_collide(&mut self, from_edge: bool) -> bool {
+    /// edge at fractions `t`, if given) may touch something.
+    fn lanes_may_collide(&mut self, t: Option<&[f64; LANES]>) -> bool {
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: the CPU has AVX2 (checked at construction).
-            return unsafe { self.check_avx2(from_edge) };
+            return unsafe { self.check_avx2(t) };
         }
-        self.check(from_edge)
+        self.check(t)
     }
 
     /// Writes the lanes from the edge: variable `j` of lane `i` is `start[j] + t[i] · delta[j]`
     /// (in `f64`, then rounded: the same values on every path).
     #[inline(always)]
-    fn fill_lanes(&mut self) {
-        let t = self.t;
+    fn fill_lanes(&mut self, t: &[f64; LANES]) {
         for ((lane, &aj), &dj) in self.lanes.iter_mut().zip(&self.start).zip(&self.delta) {
             *lane = F8(std::array::from_fn(|i| (aj + t[i] * dj) as f32));
         }
@@ -471,19 +455,19 @@ impl BatchChecker {
     /// Checks eight configurations given per variable (`lanes[j]` holds variable `j` of each).
     pub fn may_collide(&mut self, lanes: &[F8]) -> bool {
         self.lanes[..self.dof].copy_from_slice(&lanes[..self.dof]);
-        self.lanes_may_collide(false)
+        self.lanes_may_collide(None)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn check_avx2(&mut self, from_edge: bool) -> bool {
-        self.check(from_edge)
+    unsafe fn check_avx2(&mut self, t: Option<&[f64; LANES]>) -> bool {
+        self.check(t)
     }
 
     #[inline(always)]
-    fn check(&mut self, from_edge: bool) -> bool {
-        if from_edge {
-            self.fill_lanes();
+    fn check(&mut self, t: Option<&[f64; LANES]>) -> bool {
+        if let Some(t) = t {
+            self.fill_lanes(t);
         }
         self.epoch += 1;
         if self.epoch == STATIC {
@@ -664,11 +648,10 @@ impl BatchChecker {
     fn self_contact(&mut self) -> bool {
         for k in 0..self.pairs.len() {
             let (a, b, ra, rb) = self.pairs[k];
-            let (box_a, box_b) = self.pair_boxes[k];
             let (ba, bb) = (self.bounds[a], self.bounds[b]);
             if !overlap(ba, ra, bb, rb)
-                || (box_a && !self.box_reached(a, bb, rb))
-                || (box_b && !self.box_reached(b, ba, ra))
+                || !self.box_reached(a, bb, rb)
+                || !self.box_reached(b, ba, ra)
             {
                 continue;
             }
@@ -678,7 +661,7 @@ impl BatchChecker {
             for (bit, cb) in clusters_b.clone().enumerate() {
                 self.place_cluster(b, cb);
                 let (pb, crb) = (self.cluster_at[cb], self.cluster[cb].1);
-                if overlap(pb, crb, ba, ra) && (!box_a || self.box_reached(a, pb, crb)) {
+                if overlap(pb, crb, ba, ra) && self.box_reached(a, pb, crb) {
                     near_b |= 1 << bit;
                 }
             }
@@ -688,7 +671,7 @@ impl BatchChecker {
             for ca in self.link_clusters[a].clone() {
                 self.place_cluster(a, ca);
                 let (pa, cra) = (self.cluster_at[ca], self.cluster[ca].1);
-                if !overlap(pa, cra, bb, rb) || (box_b && !self.box_reached(b, pa, cra)) {
+                if !overlap(pa, cra, bb, rb) || !self.box_reached(b, pa, cra) {
                     continue;
                 }
                 let mut m = near_b;
@@ -710,10 +693,12 @@ impl BatchChecker {
     }
 
     /// True when the ball (centres `p` in eight lanes, radius `r`) reaches link `l`'s box in
-    /// some lane.
+    /// some lane, or the link has no box.
     #[inline(always)]
     fn box_reached(&self, l: usize, p: [F8; 3], r: f32) -> bool {
-        let (lo, hi) = self.bound_box[l];
+        let Some((lo, hi)) = self.bound_box[l] else {
+            return true;
+        };
         let q = self.poses[self.frame[l]].apply_inverse(p);
         let zero = F8::splat(0.0);
         let mut d2 = zero;
