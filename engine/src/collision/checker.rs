@@ -75,7 +75,7 @@ pub struct SphereChecker<'a> {
 /// The sphere model placed in the world, and what says which placements are current. It
 /// starts from the robot alone (links that never move placed once), built once per robot
 /// ([`Robot::prepared`]) and copied into each checker.
-#[derive(Clone)]
+#[derive(Clone, Default)]
 pub(crate) struct Placement {
     /// Frames of joint links (others ride in them) and the sphere model placed in them.
     joints: JointFrames,
@@ -120,8 +120,14 @@ impl<'a> SphereChecker<'a> {
             // What never moves is checked once, on the exact geometry (the base resting on
             // the floor is not in contact, whatever its spheres say).
             static_contact: exact.static_contact().cloned(),
-            at: exact.robot().prepared().spheres.clone(),
+            at: exact.robot().prepared().take_spheres(),
         }
+    }
+
+    /// Takes the placement out (the checker is not used after), to be given back to the
+    /// robot for another checker ([`Robot::prepared`]).
+    pub(crate) fn take_placement(&mut self) -> Placement {
+        std::mem::take(&mut self.at)
     }
 
     /// The sphere model of `robot` at rest, the links that never move placed once: what

@@ -142,34 +142,66 @@ pub struct ExactChecker<'a> {
     env: &'a Environment,
     poses: Vec<Pose>,
     objects: Vec<ExactObject>,
-    moving_links: Vec<usize>,
-    moving_pairs: Vec<(usize, usize)>,
+    /// The robot-only part: which links and pairs move.
+    rest: &'a Rest,
     static_contact: Option<Contact>,
     checks: u64,
+}
+
+/// What the exact checker derives from the robot alone (built once per robot,
+/// [`Robot::prepared`]): link poses at the middle of the limits, and which links and pairs
+/// move.
+#[derive(Clone)]
+pub(crate) struct Rest {
+    poses: Vec<Pose>,
+    moving_links: Vec<usize>,
+    /// Links with geometry that never move.
+    fixed_links: Vec<usize>,
+    moving_pairs: Vec<(usize, usize)>,
+    /// Pairs that keep their relative pose.
+    fixed_pairs: Vec<(usize, usize)>,
+}
+
+impl Rest {
+    pub(crate) fn new(robot: &Robot) -> Self {
+        let n = robot.links().len();
+        let (moving_links, fixed_links): (Vec<usize>, Vec<usize>) = (0..n)
+            .filter(|&l| robot.exact_model().link_bound(l).is_some())
+            .partition(|&l| robot.link_moves(l));
+        let (moving_pairs, fixed_pairs) = robot.partition_pairs();
+        let mut poses = vec![Pose::identity(); n];
+        robot.forward_kinematics(&robot.middle(), &mut poses);
+        Rest {
+            poses,
+            moving_links,
+            fixed_links,
+            moving_pairs,
+            fixed_pairs,
+        }
+    }
 }
 
 impl<'a> ExactChecker<'a> {
     /// A checker for `robot` in `env` (object shapes are converted once here).
     pub fn new(robot: &'a Robot, env: &'a Environment) -> Self {
-        let (mut sut, fixed) = Self::at_rest(robot, env);
+        let prepared = robot.prepared();
+        let mut sut = Self::at_rest(robot, env, &prepared.exact);
         // The links that never move against the world here; against each other once per robot.
         sut.static_contact = sut
-            .first_contact(&fixed, &[])
-            .or_else(|| robot.prepared().fixed_self_contact.clone());
+            .first_contact(&prepared.exact.fixed_links, &[])
+            .or_else(|| prepared.fixed_self_contact.clone());
         sut
     }
 
     /// The contact between links that never move apart, if any (see
     /// [`ExactChecker::static_contact`]): the same in every environment.
-    pub(crate) fn fixed_self_contact(robot: &Robot) -> Option<Contact> {
-        let (sut, _) = ExactChecker::at_rest(robot, super::prepared::nothing());
-        let (_, fixed_pairs) = robot.partition_pairs();
-        sut.first_contact(&[], &fixed_pairs)
+    pub(crate) fn fixed_self_contact(robot: &Robot, rest: &Rest) -> Option<Contact> {
+        let sut = ExactChecker::at_rest(robot, super::prepared::nothing(), rest);
+        sut.first_contact(&[], &rest.fixed_pairs)
     }
 
-    /// A checker with the robot at the middle of its limits, static contact not yet decided,
-    /// and the links with geometry that never move.
-    fn at_rest(robot: &'a Robot, env: &'a Environment) -> (Self, Vec<usize>) {
+    /// A checker with the robot at the middle of its limits, static contact not yet decided.
+    fn at_rest(robot: &'a Robot, env: &'a Environment, rest: &'a Rest) -> Self {
         let objects = env
             .objects()
             .iter()
@@ -186,23 +218,15 @@ impl<'a> ExactChecker<'a> {
                 }
             })
             .collect();
-        let n = robot.links().len();
-        let (moving, fixed): (Vec<usize>, Vec<usize>) = (0..n)
-            .filter(|&l| robot.exact_model().link_bound(l).is_some())
-            .partition(|&l| robot.link_moves(l));
-        let (moving_pairs, _) = robot.partition_pairs();
-        let mut sut = ExactChecker {
+        ExactChecker {
             robot,
             env,
-            poses: vec![Pose::identity(); n],
+            poses: rest.poses.clone(),
             objects,
-            moving_links: moving,
-            moving_pairs,
+            rest,
             static_contact: None,
             checks: 0,
-        };
-        robot.forward_kinematics(&robot.middle(), &mut sut.poses);
-        (sut, fixed)
+        }
     }
 
     /// The robot checked.
@@ -235,12 +259,7 @@ impl<'a> ExactChecker<'a> {
             return Some(c.clone());
         }
         self.robot.forward_kinematics(q, &mut self.poses);
-        let links = std::mem::take(&mut self.moving_links);
-        let pairs = std::mem::take(&mut self.moving_pairs);
-        let contact = self.first_contact(&links, &pairs);
-        self.moving_links = links;
-        self.moving_pairs = pairs;
-        contact
+        self.first_contact(&self.rest.moving_links, &self.rest.moving_pairs)
     }
 
     /// True when `q` is free in the exact geometry.

@@ -172,6 +172,15 @@ impl<'a> Validity<'a> {
     }
 }
 
+impl Drop for Validity<'_> {
+    /// Gives the checkers' working copies back to the robot, for its next plan.
+    fn drop(&mut self) {
+        let spheres = self.spheres.take_placement();
+        let batch = self.batch.take().map(BatchChecker::without_environment);
+        self.robot.prepared().give_back(spheres, batch);
+    }
+}
+
 impl<'a> ConfigCheck<'a> for Validity<'a> {
     fn robot(&self) -> &'a Robot {
         self.robot

@@ -120,7 +120,7 @@ impl Robot {
 /// Forward kinematics over joints only: links on fixed joints ride in the frame of their
 /// nearest ancestor on a moving joint (or the root), so only those frames are computed. The
 /// checkers place a fixed link's spheres in that frame once ([`JointFrames::to_frame`]).
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 pub struct JointFrames {
     /// Per link: the link whose frame it rides in (itself for a joint link or the root).
     pub frame: Vec<usize>,

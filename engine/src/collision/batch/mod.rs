@@ -125,7 +125,7 @@ impl BatchChecker {
     /// A batch checker, or `None` when the environment holds more than 64 objects or a link
     /// has more than 64 sphere clusters (the scalar checker handles those).
     pub fn new(robot: &Robot, env: &Environment) -> Option<Self> {
-        robot.prepared().batch.as_ref()?.in_environment(env)
+        robot.prepared().take_batch()?.in_environment(env)
     }
 
     /// The batch checker for `robot` in an empty environment: what depends on the robot
@@ -287,8 +287,9 @@ impl BatchChecker {
         Some(sut)
     }
 
-    /// A copy of this checker in `env`; `None` when it holds more than 64 objects.
-    fn in_environment(&self, env: &Environment) -> Option<Self> {
+    /// This checker in `env` (its counters reset); `None` when `env` holds more than 64
+    /// objects.
+    fn in_environment(mut self, env: &Environment) -> Option<Self> {
         if env.objects().len() > 64 {
             return None;
         }
@@ -298,36 +299,35 @@ impl BatchChecker {
             m.has_occupied()
         });
         let f = |v: f64| v as f32;
-        let objects: Vec<Object8> = env
-            .placed()
-            .map(|o| Object8 {
-                rot_t: std::array::from_fn(|k| f(o.rot_t[k / 3][k % 3])),
-                t: o.t.map(f),
-                lo: o.lo.map(f),
-                hi: o.hi.map(f),
-                kind: match *o.shape {
-                    Shape::Sphere { radius } => ObjectKind::Sphere { r: f(radius) },
-                    Shape::Box { half_extents } => ObjectKind::Box {
-                        h: half_extents.map(f),
-                    },
-                    Shape::Cylinder {
-                        radius,
-                        half_length,
-                    } => ObjectKind::Cylinder {
-                        r: f(radius),
-                        hl: f(half_length),
-                    },
-                    Shape::Capsule {
-                        radius,
-                        half_length,
-                    } => ObjectKind::Capsule {
-                        r: f(radius),
-                        hl: f(half_length),
-                    },
+        self.objects.clear();
+        self.objects.extend(env.placed().map(|o| Object8 {
+            rot_t: std::array::from_fn(|k| f(o.rot_t[k / 3][k % 3])),
+            t: o.t.map(f),
+            lo: o.lo.map(f),
+            hi: o.hi.map(f),
+            kind: match *o.shape {
+                Shape::Sphere { radius } => ObjectKind::Sphere { r: f(radius) },
+                Shape::Box { half_extents } => ObjectKind::Box {
+                    h: half_extents.map(f),
                 },
-            })
-            .collect();
-        let object_boxes = objects
+                Shape::Cylinder {
+                    radius,
+                    half_length,
+                } => ObjectKind::Cylinder {
+                    r: f(radius),
+                    hl: f(half_length),
+                },
+                Shape::Capsule {
+                    radius,
+                    half_length,
+                } => ObjectKind::Capsule {
+                    r: f(radius),
+                    hl: f(half_length),
+                },
+            },
+        }));
+        let object_boxes = self
+            .objects
             .chunks(LANES)
             .map(|chunk| {
                 let lane = |k: usize, hi: bool, i: usize| match chunk.get(k) {
@@ -342,12 +342,18 @@ impl BatchChecker {
                 )
             })
             .collect();
-        Some(BatchChecker {
-            objects,
-            object_boxes,
-            map,
-            ..self.clone()
-        })
+        self.object_boxes = object_boxes;
+        self.map = map;
+        self.states = 0;
+        Some(self)
+    }
+
+    /// This checker with its environment let go (objects, map), to be kept for another.
+    pub(crate) fn without_environment(mut self) -> Self {
+        self.objects.clear();
+        self.object_boxes.clear();
+        self.map = None;
+        self
     }
 
     /// True when any of the states strictly between `a` and `b` (at `resolution`, the
