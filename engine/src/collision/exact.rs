@@ -11,7 +11,7 @@
 
 use super::checker::Contact;
 use super::gjk::Convex;
-use super::parry::{convex_touch, shared_geometry, shared_shape};
+use super::parry::{convex_touch, exact_shape, shared_geometry};
 use crate::robot::{Link, Robot};
 use crate::world::Environment;
 use crate::Pose;
@@ -205,16 +205,14 @@ impl<'a> ExactChecker<'a> {
         let objects = env
             .objects()
             .iter()
-            .map(|o| {
-                let (shape, adjust) = shared_shape(&o.shape);
-                let pose = o.pose * adjust;
-                let aabb = shape.compute_aabb(&super::parry::to_parry_pose(&pose));
-                let v = |p: parry3d::math::Vector| Vector3::new(p.x as f64, p.y as f64, p.z as f64);
+            .zip(env.placed())
+            .map(|(o, placed)| {
+                let (convex, adjust) = exact_shape(&o.shape);
                 ExactObject {
-                    convex: Convex::from_parry(&*shape).expect("primitives are convex"),
-                    pose,
-                    lo: v(aabb.mins) - Vector3::repeat(1e-6),
-                    hi: v(aabb.maxs) + Vector3::repeat(1e-6),
+                    convex,
+                    pose: o.pose * adjust,
+                    lo: Vector3::from(placed.lo) - Vector3::repeat(1e-6),
+                    hi: Vector3::from(placed.hi) + Vector3::repeat(1e-6),
                 }
             })
             .collect();

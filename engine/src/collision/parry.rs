@@ -27,29 +27,59 @@ pub(crate) fn to_parry_pose(p: &Pose) -> PPose {
 /// A parry3d shape for a primitive, and the pose of parry's frame in the primitive's frame
 /// (identity except for cylinders: parry's run along Y, ours along Z).
 pub(crate) fn shared_shape(shape: &Shape) -> (SharedShape, Pose) {
-    match *shape {
-        Shape::Sphere { radius } => (SharedShape::ball(radius as f32), Pose::identity()),
-        Shape::Box { half_extents: h } => (
-            SharedShape::cuboid(h[0] as f32, h[1] as f32, h[2] as f32),
-            Pose::identity(),
-        ),
+    let f = |v: f64| v as f32;
+    let parry = match *shape {
+        Shape::Sphere { radius } => SharedShape::ball(f(radius)),
+        Shape::Box { half_extents: h } => SharedShape::cuboid(f(h[0]), f(h[1]), f(h[2])),
         Shape::Capsule {
             radius,
             half_length,
-        } => (
-            SharedShape::new(Capsule::new_z(half_length as f32, radius as f32)),
-            Pose::identity(),
-        ),
+        } => SharedShape::new(Capsule::new_z(f(half_length), f(radius))),
         Shape::Cylinder {
             radius,
             half_length,
-        } => (
-            SharedShape::cylinder(half_length as f32, radius as f32),
-            Pose::from_parts(
-                Translation3::identity(),
-                UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::FRAC_PI_2),
-            ),
+        } => SharedShape::cylinder(f(half_length), f(radius)),
+    };
+    (parry, parry_frame(shape))
+}
+
+/// The exact checker's form of a primitive: the shape [`shared_shape`] makes (its sizes
+/// rounded through `f32` likewise) and the same frame, without building the parry3d shape.
+pub(crate) fn exact_shape(shape: &Shape) -> (Convex, Pose) {
+    let f = |v: f64| v as f32 as f64;
+    let convex = match *shape {
+        Shape::Sphere { radius } => Convex::Ball(f(radius)),
+        Shape::Box { half_extents: h } => Convex::Cuboid(Vector3::new(f(h[0]), f(h[1]), f(h[2]))),
+        Shape::Capsule {
+            radius,
+            half_length,
+        } => {
+            let b = Vector3::new(0.0, 0.0, f(half_length));
+            Convex::Capsule {
+                a: -b,
+                b,
+                r: f(radius),
+            }
+        }
+        Shape::Cylinder {
+            radius,
+            half_length,
+        } => Convex::Cylinder {
+            h: f(half_length),
+            r: f(radius),
+        },
+    };
+    (convex, parry_frame(shape))
+}
+
+/// The pose of parry's frame for `shape` in the primitive's frame.
+fn parry_frame(shape: &Shape) -> Pose {
+    match shape {
+        Shape::Cylinder { .. } => Pose::from_parts(
+            Translation3::identity(),
+            UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::FRAC_PI_2),
         ),
+        _ => Pose::identity(),
     }
 }
 
@@ -198,6 +228,33 @@ pub fn robot_touches(robot: &Robot, poses: &[Pose], object: &Object, tolerance: 
 mod tests {
     use super::*;
     use crate::collision::distance::distance_point_shape;
+
+    /// The exact checker's shapes made directly are the ones converted from parry3d's, value
+    /// for value (the searches do not change with the shortcut).
+    #[test]
+    fn exact_shapes_are_parrys() {
+        let shapes = [
+            Shape::Sphere { radius: 0.1234567 },
+            Shape::Box {
+                half_extents: [0.1, 0.2345678, 0.3],
+            },
+            Shape::Capsule {
+                radius: 0.05,
+                half_length: 0.2345678,
+            },
+            Shape::Cylinder {
+                radius: 0.0333333,
+                half_length: 0.4567891,
+            },
+        ];
+        for shape in shapes {
+            let (parry, frame) = shared_shape(&shape);
+            let (direct, direct_frame) = exact_shape(&shape);
+            let converted = Convex::from_parry(&*parry).unwrap();
+            assert_eq!(format!("{direct:?}"), format!("{converted:?}"), "{shape:?}");
+            assert_eq!(direct_frame, frame, "{shape:?}");
+        }
+    }
 
     #[test]
     fn cylinder_runs_along_z() {
