@@ -521,16 +521,13 @@ impl BatchChecker {
             let s = s * F8::splat(sign);
             match (parent, origin.turn) {
                 // The common case: the parent's rotation turned straight into place.
-                (Some(r), Turn::Identity) => turn_columns(r, &mut at.r, axes, (s, c)),
+                (Some(r), Turn::Identity) => turn_columns(Some(r), &mut at.r, axes, (s, c)),
+                // Turned in place: a copy of the 288-byte rotation was a call to `memcpy`.
                 (Some(r), _) => {
                     origin.rotate(r, &mut at.r);
-                    let r = at.r;
-                    turn_columns(&r, &mut at.r, axes, (s, c));
+                    turn_columns(None, &mut at.r, axes, (s, c));
                 }
-                (None, _) => {
-                    let r = at.r;
-                    turn_columns(&r, &mut at.r, axes, (s, c));
-                }
+                (None, _) => turn_columns(None, &mut at.r, axes, (s, c)),
             }
             return;
         }
@@ -798,7 +795,13 @@ impl Origin {
     #[inline(always)]
     fn rotate(&self, a: &[F8; 9], out: &mut [F8; 9]) {
         match self.turn {
-            Turn::Identity => *out = *a,
+            // Row by row: a copy of the whole 288 bytes is a call to `memcpy`.
+            Turn::Identity => {
+                for row in 0..3 {
+                    let r: [F8; 3] = [a[row * 3], a[row * 3 + 1], a[row * 3 + 2]];
+                    out[row * 3..row * 3 + 3].copy_from_slice(&r);
+                }
+            }
             Turn::Axes(axes) => {
                 for row in 0..3 {
                     for (j, &(i, sign)) in axes.iter().enumerate() {
@@ -812,10 +815,11 @@ impl Origin {
     }
 }
 
-/// `to = from` turned by the lane angles whose sine and cosine are `(s, c)` about the
-/// coordinate axis other than `[i, j]`: those two columns turn, the third is copied.
+/// `to = from` (or `to` itself, `from` being `None`) turned by the lane angles whose sine
+/// and cosine are `(s, c)` about the coordinate axis other than `[i, j]`: those two columns
+/// turn, the third is copied.
 #[inline(always)]
-fn turn_columns(from: &[F8; 9], to: &mut [F8; 9], axes: [usize; 2], sc: (F8, F8)) {
+fn turn_columns(from: Option<&[F8; 9]>, to: &mut [F8; 9], axes: [usize; 2], sc: (F8, F8)) {
     // Column numbers known at compile time: no index arithmetic or bounds checks.
     match axes {
         [1, 2] => turn_columns_of::<1, 2, 0>(from, to, sc),
@@ -826,15 +830,21 @@ fn turn_columns(from: &[F8; 9], to: &mut [F8; 9], axes: [usize; 2], sc: (F8, F8)
 
 #[inline(always)]
 fn turn_columns_of<const I: usize, const J: usize, const K: usize>(
-    from: &[F8; 9],
+    from: Option<&[F8; 9]>,
     to: &mut [F8; 9],
     (s, c): (F8, F8),
 ) {
     for row in 0..3 {
-        let (a, b) = (from[row * 3 + I], from[row * 3 + J]);
+        // A row's two entries are read before either is written: in place is safe.
+        let (a, b) = match from {
+            Some(f) => (f[row * 3 + I], f[row * 3 + J]),
+            None => (to[row * 3 + I], to[row * 3 + J]),
+        };
         to[row * 3 + I] = a * c + b * s;
         to[row * 3 + J] = b * c - a * s;
-        to[row * 3 + K] = from[row * 3 + K];
+        if let Some(f) = from {
+            to[row * 3 + K] = f[row * 3 + K];
+        }
     }
 }
 
