@@ -120,10 +120,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     env
                 }
             };
-            let (joints, attached) = (&p.request.start_joints[..], &p.scene.attached[..]);
+            // Only the joints outside the group shape the copy (the group's are the start).
+            let joints: Vec<(String, f64)> = p
+                .request
+                .start_joints
+                .iter()
+                .filter(|(name, _)| !robot.variables().iter().any(|v| &v.name == name))
+                .cloned()
+                .collect();
+            let attached = &p.scene.attached[..];
             let robot = match &copy {
                 Some((j, a, r)) if *j == joints && *a == attached => r,
-                _ => match p.scene.robot_with(&robot, joints)? {
+                _ => match p.scene.robot_with(&robot, &joints)? {
                     Cow::Borrowed(r) => r,
                     Cow::Owned(r) => &copy.insert((joints, attached, r)).2,
                 },
@@ -247,8 +255,9 @@ impl Tally {
     }
 }
 
-/// A robot copy and the start-state joints and attached objects it was derived with.
-type RobotCopy<'p> = (&'p [(String, f64)], &'p [AttachedObject], Robot);
+/// A robot copy and the start-state joints outside the group and the attached objects it was
+/// derived with.
+type RobotCopy<'p> = (Vec<(String, f64)>, &'p [AttachedObject], Robot);
 
 /// The points of an ASCII PCD file (x y z first) as occupied voxels of a map, with its
 /// clearance grid built (map building is not planning time).
