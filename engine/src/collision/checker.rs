@@ -74,7 +74,7 @@ pub struct SphereChecker<'a> {
 
 /// The sphere model placed in the world, and what says which placements are current. It
 /// starts from the robot alone (links that never move placed once), built once per robot
-/// ([`Robot::prepared`]) and copied into each checker.
+/// ([`Robot::prepared`]); each checker takes a copy, or a spare an earlier plan gave back.
 #[derive(Clone, Default)]
 pub(crate) struct Placement {
     /// Frames of joint links (others ride in them) and the sphere model placed in them.
