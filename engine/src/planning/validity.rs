@@ -176,7 +176,7 @@ impl Drop for Validity<'_> {
     /// Gives the checkers' working copies back to the robot, for its next plan.
     fn drop(&mut self) {
         let spheres = self.spheres.take_placement();
-        let batch = self.batch.take().map(BatchChecker::without_environment);
+        let batch = self.batch.take().map(BatchChecker::without_map);
         self.robot.prepared().give_back(spheres, batch);
     }
 }

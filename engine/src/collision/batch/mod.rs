@@ -326,10 +326,9 @@ impl BatchChecker {
                 },
             },
         }));
-        let object_boxes = self
-            .objects
-            .chunks(LANES)
-            .map(|chunk| {
+        self.object_boxes.clear();
+        self.object_boxes
+            .extend(self.objects.chunks(LANES).map(|chunk| {
                 let lane = |k: usize, hi: bool, i: usize| match chunk.get(k) {
                     Some(o) if hi => o.hi[i],
                     Some(o) => o.lo[i],
@@ -340,18 +339,15 @@ impl BatchChecker {
                     std::array::from_fn(|i| F8(std::array::from_fn(|k| lane(k, false, i)))),
                     std::array::from_fn(|i| F8(std::array::from_fn(|k| lane(k, true, i)))),
                 )
-            })
-            .collect();
-        self.object_boxes = object_boxes;
+            }));
         self.map = map;
         self.states = 0;
         Some(self)
     }
 
-    /// This checker with its environment let go (objects, map), to be kept for another.
-    pub(crate) fn without_environment(mut self) -> Self {
-        self.objects.clear();
-        self.object_boxes.clear();
+    /// This checker with its map let go (it may be large), to be kept for another environment
+    /// ([`BatchChecker::new`] replaces the objects).
+    pub(crate) fn without_map(mut self) -> Self {
         self.map = None;
         self
     }
