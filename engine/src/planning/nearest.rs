@@ -13,6 +13,7 @@
 //! Tight boxes prune far better than split planes in eight dimensions, where queries are
 //! uniform samples, mostly far from a tree that grows along narrow branches.
 
+use crate::collision::batch::lanes::has_avx2;
 use crate::robot::config_space::wrap_angle;
 use std::f64::consts::TAU;
 
@@ -469,17 +470,6 @@ unsafe fn leaf_kernel_avx2<const DOF: usize>(
     _mm256_storeu_ps(values.as_mut_ptr(), least);
     _mm256_storeu_si256(block_numbers.as_mut_ptr().cast(), block_of);
     first_least(&values, &block_numbers)
-}
-
-fn has_avx2() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::is_x86_feature_detected!("avx2")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
 }
 
 #[cfg(test)]

@@ -11,6 +11,18 @@ pub const LANES: usize = 8;
 /// Every lane, as bits (the form lane masks take).
 pub const ALL_LANES: u32 = (1 << LANES) - 1;
 
+/// True when the CPU runs AVX2 (the code paths compiled for it are then chosen at run time).
+pub fn has_avx2() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
 /// Eight `f32` values, one per configuration.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 #[repr(C, align(32))]

@@ -30,7 +30,7 @@ use crate::robot::fk::JointFrames;
 use crate::robot::{Motion, Robot};
 use crate::world::map::{Clearance, OccupancyMap};
 use crate::world::Environment;
-use lanes::{Pose8, ALL_LANES, F8, LANES};
+use lanes::{has_avx2, Pose8, ALL_LANES, F8, LANES};
 use std::sync::Arc;
 
 /// Stamp of placements that never change (links that do not move).
@@ -962,16 +962,5 @@ fn penetrates(o: &Object8, p: [F8; 3], r: f32) -> bool {
             let reach = big + r;
             (x * x + y * y + zc * zc).any_lt(F8::splat(reach * reach))
         }
-    }
-}
-
-fn has_avx2() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::is_x86_feature_detected!("avx2")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
     }
 }
