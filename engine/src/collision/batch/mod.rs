@@ -605,12 +605,19 @@ impl BatchChecker {
                 if cluster_mask == 0 && cluster_map == 0 {
                     continue;
                 }
-                self.place_spheres(l, ci);
+                // Spheres not yet placed in this batch are placed one by one as they are
+                // tested: most batches end at a link's first spheres in contact.
+                let placed = self.sphere_stamp[ci] >= self.epoch;
+                let pose = &self.poses[self.frame[l]];
                 let range = self.cluster[ci].2.clone();
-                for (&p, &(_, r)) in self.sphere_at[range.clone()]
-                    .iter()
+                for (at, &(c, r)) in self.sphere_at[range.clone()]
+                    .iter_mut()
                     .zip(&self.sphere[range])
                 {
+                    if !placed {
+                        *at = pose.apply_const(c);
+                    }
+                    let p = *at;
                     if penetrated(&self.objects, cluster_mask, p, r) != 0 {
                         return true;
                     }
@@ -618,6 +625,8 @@ impl BatchChecker {
                         return true;
                     }
                 }
+                // Every sphere of the cluster is placed now.
+                self.sphere_stamp[ci] = self.sphere_stamp[ci].max(self.epoch);
             }
         }
         false
