@@ -311,7 +311,9 @@ impl Clearance {
             let o1 = p[1].0[i] - (floor[1][i] + 0.5) * res;
             let o2 = p[2].0[i] - (floor[2][i] + 0.5) * res;
             let off = (o0 * o0 + o1 * o1 + o2 * o2).sqrt();
-            unclear |= (!(d[i] - off >= need) as u32) << i;
+            // Not `<`: a lane with a NaN stays unclear.
+            let clear = d[i] - off >= need;
+            unclear |= (!clear as u32) << i;
         }
         let mut out = unclear & lanes & !outside;
         while outside != 0 {
