@@ -348,3 +348,52 @@ fn batch_checker_agrees_with_the_scalar_checker() {
         );
     }
 }
+
+/// The eight-lane checker tries the spheres of its last contacts first in each batch: a
+/// checker with a history answers every batch as a fresh one does, on random walks (whose
+/// neighbouring batches hit the same obstacles with the same spheres, as a search's do), with
+/// and without a map.
+#[test]
+fn batch_checker_with_a_history_answers_as_a_fresh_one() {
+    use ember_engine::collision::batch::{lanes::F8, BatchChecker};
+    use rand::SeedableRng;
+    let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+    for name in ["fetch", "panda"] {
+        let robot = Robot::builtin(name).unwrap();
+        let dof = robot.dof();
+        let (mut batches, mut contacts) = (0, 0);
+        for scene in 0..12 {
+            let mut env = random_scene(&mut rng, 6 + scene % 5);
+            if scene % 2 == 0 {
+                env.set_map(Some(random_map(&mut rng)));
+            }
+            if SphereChecker::new(&robot, &env).blocked() {
+                continue;
+            }
+            let mut batch = BatchChecker::new(&robot, &env).unwrap();
+            let mut q = vec![0.0; dof];
+            robot.sample_uniform(&mut rng, &mut q);
+            let mut step = vec![0.0; dof];
+            for _ in 0..60 {
+                // A tenth of the way to a random configuration: inside the limits.
+                robot.sample_uniform(&mut rng, &mut step);
+                for j in 0..dof {
+                    q[j] += 0.1 * (step[j] - q[j]);
+                }
+                let lanes: Vec<F8> = (0..dof)
+                    .map(|j| F8(std::array::from_fn(|k| (q[j] + 0.01 * k as f64) as f32)))
+                    .collect();
+                let with_history = batch.may_collide(&lanes);
+                let fresh = BatchChecker::new(&robot, &env).unwrap().may_collide(&lanes);
+                assert_eq!(with_history, fresh, "{name}, scene {scene}: at {q:?}");
+                batches += 1;
+                contacts += usize::from(fresh);
+            }
+        }
+        // The test must bite: runs of contacts, where the history is used, and free batches.
+        assert!(
+            contacts * 4 > batches && contacts * 4 < 3 * batches,
+            "{name}: {contacts} contacts in {batches} batches"
+        );
+    }
+}

@@ -7,7 +7,8 @@
 //! its spheres, against the objects whose world boxes the link's eight bounds reach, and over
 //! the self-collision pairs (where a long or flat link's box around its spheres, tighter than
 //! its ball, clears most pairs a torso or a base would otherwise pass down to the clusters).
-//! The first lane in contact ends the check. Links that never move
+//! The first lane in contact ends the check, and the spheres and obstacles of the last few
+//! contacts are tried before the hierarchy. Links that never move
 //! are not checked against the environment: the scalar checker decides that once, exactly
 //! ([`SphereChecker::blocked`](super::SphereChecker::blocked)), and the planner does not use
 //! this checker when it is so.
@@ -32,6 +33,11 @@ use crate::world::map::{Clearance, OccupancyMap};
 use crate::world::Environment;
 use lanes::{has_avx2, Pose8, ALL_LANES, F8, LANES};
 use std::sync::Arc;
+
+/// Environment contacts remembered and tried first in the next batch (see
+/// [`BatchChecker::env_contact_with`]): four find nine in ten of a search's contacts on the
+/// MotionBenchMaker Fetch sets.
+const RECENT: usize = 4;
 
 /// Stamp of placements that never change (links that do not move).
 const STATIC: u32 = u32::MAX;
@@ -118,6 +124,9 @@ pub struct BatchChecker {
     delta: Vec<f64>,
     /// States checked so far.
     states: u64,
+    /// The last environment contacts, most recent first: (link, sphere, object; or
+    /// `usize::MAX` for the map).
+    recent: [Option<(usize, usize, usize)>; RECENT],
     avx2: bool,
 }
 
@@ -261,6 +270,7 @@ impl BatchChecker {
             sphere_stamp: vec![0; model.clusters.len()],
             epoch: 0,
             states: 0,
+            recent: [None; RECENT],
             lanes: vec![F8::default(); robot.dof()],
             start: vec![0.0; robot.dof()],
             delta: vec![0.0; robot.dof()],
@@ -342,6 +352,7 @@ impl BatchChecker {
             }));
         self.map = map;
         self.states = 0;
+        self.recent = [None; RECENT];
         Some(self)
     }
 
@@ -490,6 +501,12 @@ impl BatchChecker {
     }
 
     #[inline(always)]
+    fn remember(&mut self, contact: (usize, usize, usize)) {
+        self.recent.rotate_right(1);
+        self.recent[0] = Some(contact);
+    }
+
+    #[inline(always)]
     fn place_bound(&mut self, l: usize) {
         let (c, _) = self.bound[l].unwrap_or_default();
         self.bounds[l] = self.poses[self.frame[l]].apply_const(c);
@@ -576,12 +593,32 @@ impl BatchChecker {
         hit
     }
 
+    /// True when a sphere may touch an object or the map in some lane. The spheres and
+    /// obstacles of the last contacts are tried first: a search's neighbouring batches mostly
+    /// hit the same obstacle with the same sphere, and such a batch then costs its kinematics
+    /// and one test instead of the walk down the hierarchy. (Any sphere in contact is a
+    /// contact: the order changes the cost, never the verdict.)
     #[inline(always)]
     fn env_contact_with(&mut self, map: Option<&OccupancyMap>) -> bool {
         let grid = match map {
             Some(m) => m.clearance(),
             None => None,
         };
+        for k in 0..RECENT {
+            let Some((l, s, j)) = self.recent[k] else {
+                break;
+            };
+            let (c, r) = self.sphere[s];
+            let p = self.poses[self.frame[l]].apply_const(c);
+            let hit = match self.objects.get(j) {
+                Some(o) => penetrates(o, p, r),
+                None => lanes_touch_map(map, grid, p, r, ALL_LANES),
+            };
+            if hit {
+                self.recent[..=k].rotate_right(1);
+                return true;
+            }
+        }
         for k in 0..self.moving.len() {
             let l = self.moving[k];
             self.place_bound(l);
@@ -610,18 +647,23 @@ impl BatchChecker {
                 let placed = self.sphere_stamp[ci] >= self.epoch;
                 let pose = &self.poses[self.frame[l]];
                 let range = self.cluster[ci].2.clone();
-                for (at, &(c, r)) in self.sphere_at[range.clone()]
+                for (s, (at, &(c, r))) in self.sphere_at[range.clone()]
                     .iter_mut()
-                    .zip(&self.sphere[range])
+                    .zip(&self.sphere[range.clone()])
+                    .enumerate()
+                    .map(|(k, x)| (range.start + k, x))
                 {
                     if !placed {
                         *at = pose.apply_const(c);
                     }
                     let p = *at;
-                    if penetrated(&self.objects, cluster_mask, p, r) != 0 {
+                    let hit = penetrated(&self.objects, cluster_mask, p, r);
+                    if hit != 0 {
+                        self.remember((l, s, hit.trailing_zeros() as usize));
                         return true;
                     }
                     if cluster_map != 0 && lanes_touch_map(map, grid, p, r, cluster_map) {
+                        self.remember((l, s, usize::MAX));
                         return true;
                     }
                 }
