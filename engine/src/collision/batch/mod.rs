@@ -685,11 +685,10 @@ impl BatchChecker {
         let hi = b.map(|v| F8::splat(v.hmax() + br));
         let mut cand = 0u64;
         for (block, (olo, ohi)) in self.object_boxes.iter().enumerate() {
-            let mut reach = u32::MAX;
-            for i in 0..3 {
-                reach &= olo[i].le_mask(hi[i]) & lo[i].le_mask(ohi[i]);
-            }
-            cand |= (reach as u64) << (block * LANES);
+            let reach = (olo[0].le(hi[0]) & lo[0].le(ohi[0]))
+                & (olo[1].le(hi[1]) & lo[1].le(ohi[1]))
+                & (olo[2].le(hi[2]) & lo[2].le(ohi[2]));
+            cand |= (reach.bits() as u64) << (block * LANES);
         }
         penetrated(&self.objects, cand, b, br)
     }
