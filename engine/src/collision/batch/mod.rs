@@ -695,13 +695,13 @@ impl BatchChecker {
 
     #[inline(always)]
     fn self_contact(&mut self) -> bool {
-        for k in 0..self.pairs.len() {
+        let mut next = 0;
+        // Most pairs' bounds are apart in every lane: a tight loop finds those that are not.
+        while let Some(k) = next_overlapping(&self.pairs, &self.bounds, next) {
+            next = k + 1;
             let (a, b, ra, rb) = self.pairs[k];
             let (ba, bb) = (self.bounds[a], self.bounds[b]);
-            if !overlap(ba, ra, bb, rb)
-                || !self.box_reached(a, bb, rb)
-                || !self.box_reached(b, ba, ra)
-            {
+            if !self.box_reached(a, bb, rb) || !self.box_reached(b, ba, ra) {
                 continue;
             }
             // The clusters of `b` within reach of `a`'s bound, as bits (at most 64 per link).
@@ -916,6 +916,22 @@ fn rotation(axis: [f32; 3], q: F8) -> Pose8 {
         ],
         t: [F8::splat(0.0); 3],
     }
+}
+
+/// The first self-collision pair from `from` on whose link bounds overlap in some lane.
+#[inline(always)]
+fn next_overlapping(
+    pairs: &[(usize, usize, f32, f32)],
+    bounds: &[[F8; 3]],
+    from: usize,
+) -> Option<usize> {
+    // A plain loop: closures would be compiled without the caller's AVX2.
+    for (k, &(a, b, ra, rb)) in pairs.iter().enumerate().skip(from) {
+        if overlap(bounds[a], ra, bounds[b], rb) {
+            return Some(k);
+        }
+    }
+    None
 }
 
 /// True when balls `(a, ra)` and `(b, rb)` overlap in some lane.
