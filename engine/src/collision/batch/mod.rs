@@ -609,7 +609,11 @@ impl BatchChecker {
                 break;
             };
             let (c, r) = self.sphere[s];
-            let p = self.poses[self.frame[l]].apply_const(c);
+            // Written where the sphere's placement goes (correct for this batch; its stamp
+            // is left alone): computed into a local, LLVM interleaved the three rows with
+            // the shape test and took twice the instructions.
+            self.sphere_at[s] = self.poses[self.frame[l]].apply_const(c);
+            let p = self.sphere_at[s];
             let hit = match self.objects.get(j) {
                 Some(o) => penetrates(o, p, r),
                 None => lanes_touch_map(map, grid, p, r, ALL_LANES),
