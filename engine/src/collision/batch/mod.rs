@@ -55,6 +55,16 @@ enum Kind {
     Prismatic([f32; 3]),
 }
 
+/// How a link's pose follows from its parent's: the joint origin (row-major rotation,
+/// translation) in the parent's frame, the parent's frame, the motion and its variable.
+#[derive(Clone, Copy)]
+struct Joint8 {
+    origin: Origin,
+    parent: Option<usize>,
+    kind: Kind,
+    variable: usize,
+}
+
 #[derive(Clone, Copy)]
 enum ObjectKind {
     Sphere { r: f32 },
@@ -77,13 +87,10 @@ struct Object8 {
 pub struct BatchChecker {
     dof: usize,
     /// Per link: the frame its pose is computed in (its own for a joint or the root, else its
-    /// nearest such ancestor's), that frame's parent frame, the joint origin in it (row-major
-    /// rotation, translation), motion, variable.
+    /// nearest such ancestor's).
     frame: Vec<usize>,
-    parent: Vec<Option<usize>>,
-    origin: Vec<Origin>,
-    kind: Vec<Kind>,
-    variable: Vec<usize>,
+    /// Per link: what its pose is computed from (one record, read once per link and batch).
+    joints: Vec<Joint8>,
     /// Links whose pose a batch computes (moving, in their own frame), parents first.
     posed: Vec<usize>,
     /// Links with spheres that move.
@@ -152,15 +159,13 @@ impl BatchChecker {
         // root): their spheres are placed in that frame once, so FK runs over joints only.
         let joints = JointFrames::new(robot);
         let frame = joints.frame.clone();
-        let mut origin = Vec::new();
-        let mut kind = Vec::new();
-        let mut variable = Vec::new();
+        let mut joints8 = Vec::new();
         for (i, link) in links.iter().enumerate() {
             let o = joints.origin[i];
             let m = o.rotation.matrix();
             let r = std::array::from_fn(|k| f(m[(k / 3, k % 3)]));
             let t = o.translation.vector;
-            origin.push(Origin::new(r, [f(t.x), f(t.y), f(t.z)]));
+            let origin = Origin::new(r, [f(t.x), f(t.y), f(t.z)]);
             let axis = |a: &nalgebra::Unit<nalgebra::Vector3<f64>>| [f(a.x), f(a.y), f(a.z)];
             let (k, v) = match &link.motion {
                 Motion::Fixed => (Kind::Fixed, 0),
@@ -176,8 +181,12 @@ impl BatchChecker {
                 }
                 Motion::Prismatic { axis: a, variable } => (Kind::Prismatic(axis(a)), *variable),
             };
-            kind.push(k);
-            variable.push(v);
+            joints8.push(Joint8 {
+                origin,
+                parent: link.parent.map(|p| joints.frame[p]),
+                kind: k,
+                variable: v,
+            });
         }
         // Sphere-model points in the frame their link rides in.
         let place = |l: usize, c: [f64; 3]| -> [f32; 3] { joints.place(l, c).map(f) };
@@ -246,11 +255,8 @@ impl BatchChecker {
             .collect();
         let mut sut = BatchChecker {
             dof: robot.dof(),
-            parent: links.iter().map(|l| l.parent.map(|p| frame[p])).collect(),
             frame,
-            origin,
-            kind,
-            variable,
+            joints: joints8,
             posed,
             moving,
             bound,
@@ -516,10 +522,11 @@ impl BatchChecker {
     fn fk_link(&mut self, l: usize) {
         // The parent's pose times the constant joint origin, then the joint's own motion,
         // written in place: a pose is 384 bytes, and copies cost as much as the arithmetic.
-        let origin = &self.origin[l];
+        let joint = &self.joints[l];
+        let origin = &joint.origin;
         let (done, rest) = self.poses.split_at_mut(l);
         let at = &mut rest[0];
-        let parent = match self.parent[l] {
+        let parent = match joint.parent {
             None => {
                 *at = Pose8::splat(origin.r, origin.t);
                 None
@@ -529,8 +536,8 @@ impl BatchChecker {
                 Some(&done[p].r)
             }
         };
-        if let Kind::RevoluteAxis(axes, sign) = self.kind[l] {
-            let (s, c) = self.lanes[self.variable[l]].sin_cos();
+        if let Kind::RevoluteAxis(axes, sign) = joint.kind {
+            let (s, c) = self.lanes[joint.variable].sin_cos();
             let s = s * F8::splat(sign);
             match (parent, origin.turn) {
                 // The common case: the parent's rotation turned straight into place.
@@ -547,13 +554,13 @@ impl BatchChecker {
         if let Some(r) = parent {
             origin.rotate(r, &mut at.r);
         }
-        match self.kind[l] {
+        match joint.kind {
             Kind::Fixed | Kind::RevoluteAxis(..) => {}
             Kind::Revolute(axis) => {
-                at.r = rotation(axis, self.lanes[self.variable[l]]).r_after(&at.r);
+                at.r = rotation(axis, self.lanes[joint.variable]).r_after(&at.r);
             }
             Kind::Prismatic(axis) => {
-                let v = self.lanes[self.variable[l]];
+                let v = self.lanes[joint.variable];
                 at.t = at.apply(axis.map(|a| F8::splat(a) * v));
             }
         }
