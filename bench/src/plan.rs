@@ -299,6 +299,8 @@ struct Split {
     motions: u64,
     iterations: u64,
     fallbacks: u64,
+    batches: u64,
+    remembered: u64,
 }
 
 impl Split {
@@ -311,6 +313,8 @@ impl Split {
         self.motions += s.motion_checks;
         self.iterations += s.iterations;
         self.fallbacks += s.exact_fallbacks;
+        self.batches += s.batches;
+        self.remembered += s.remembered_batches;
     }
 
     /// Collision-checking time per configuration checked, ns.
@@ -319,20 +323,23 @@ impl Split {
     }
 
     /// `sample_pct check_pct neighbour_pct other_pct` of the search time, ns per checked
-    /// configuration, configurations per iteration and exact fallbacks.
+    /// configuration, configurations per iteration, exact fallbacks and the share of batches a
+    /// remembered contact ended.
     fn keys(&self) -> String {
         let pct = |x: f64| 100.0 * x / self.search_s.max(1e-12);
         let other = self.search_s - self.sample_s - self.check_s - self.neighbour_s;
         format!(
             "sample_pct={:.1} check_pct={:.1} neighbour_pct={:.1} other_pct={:.1} \
-             check_ns_per_config={:.1} configs_per_iteration={:.1} exact_fallbacks={}",
+             check_ns_per_config={:.1} configs_per_iteration={:.1} exact_fallbacks={} \
+             remembered_pct={:.1}",
             pct(self.sample_s),
             pct(self.check_s),
             pct(self.neighbour_s),
             pct(other.max(0.0)),
             self.check_ns_per_config(),
             self.configs as f64 / self.iterations.max(1) as f64,
-            self.fallbacks
+            self.fallbacks,
+            100.0 * self.remembered as f64 / self.batches.max(1) as f64
         )
     }
 }

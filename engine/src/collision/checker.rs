@@ -50,6 +50,10 @@ pub struct CheckStats {
     pub configs: u64,
     /// Motions checked.
     pub motions: u64,
+    /// Batches of eight states the lanes checked.
+    pub batches: u64,
+    /// Of those, the batches a remembered contact ended (see `collision::batch`).
+    pub remembered: u64,
 }
 
 /// A configuration and motion validity checker over a robot and an environment.

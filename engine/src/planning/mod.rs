@@ -220,6 +220,10 @@ pub struct PlanStats {
     pub config_checks: u64,
     /// Edges checked.
     pub motion_checks: u64,
+    /// Batches of eight states checked in lanes.
+    pub batches: u64,
+    /// Of those, the batches a remembered contact ended.
+    pub remembered_batches: u64,
     /// Time drawing samples, seconds.
     pub sample_s: f64,
     /// Time checking collisions during the search, seconds.
@@ -380,6 +384,8 @@ pub fn plan(
     let (after, fallbacks) = checker.stats();
     stats.config_checks = after.configs - before.configs;
     stats.motion_checks = after.motions - before.motions;
+    stats.batches = after.batches - before.batches;
+    stats.remembered_batches = after.remembered - before.remembered;
     stats.exact_fallbacks = fallbacks;
     // The returned path is validated on the exact geometry; should the simplified one fail,
     // the search's own path is the fallback.

@@ -86,7 +86,10 @@ impl<'a> Validity<'a> {
     /// fallbacks.
     pub fn stats(&self) -> (CheckStats, u64) {
         let mut s = self.spheres.stats();
-        s.configs += self.batch.as_ref().map_or(0, |b| b.states());
+        if let Some(b) = &self.batch {
+            s.configs += b.states();
+            (s.batches, s.remembered) = b.batches();
+        }
         s.motions = self.motions;
         (s, self.fallbacks)
     }

@@ -35,8 +35,9 @@ use lanes::{has_avx2, Pose8, ALL_LANES, F8, LANES};
 use std::sync::Arc;
 
 /// Environment contacts remembered and tried first in the next batch (see
-/// [`BatchChecker::env_contact_with`]): four find seven in ten of a search's contacts on the
-/// MotionBenchMaker Fetch sets (eight find nine in ten, but cost more when they miss).
+/// [`BatchChecker::env_contact_with`]). Four end 40–80% of the batches on the
+/// MotionBenchMaker Fetch sets (`ember-bench plan`'s `remembered_pct`); more find more but
+/// cost more when they miss.
 const RECENT: usize = 4;
 
 /// Stamp of placements that never change (links that do not move).
@@ -63,6 +64,15 @@ struct Joint8 {
     parent: Option<usize>,
     kind: Kind,
     variable: usize,
+}
+
+/// What a remembered contact's sphere touched.
+#[derive(Clone, Copy)]
+enum Touched {
+    /// An object, by number.
+    Object(usize),
+    /// The occupancy map.
+    Map,
 }
 
 #[derive(Clone, Copy)]
@@ -131,9 +141,11 @@ pub struct BatchChecker {
     delta: Vec<f64>,
     /// States checked so far.
     states: u64,
-    /// The last environment contacts, most recent first: (link, sphere, object; or
-    /// `usize::MAX` for the map).
-    recent: [Option<(usize, usize, usize)>; RECENT],
+    /// The last environment contacts, most recent first: link, sphere, what it touched.
+    recent: [Option<(usize, usize, Touched)>; RECENT],
+    /// Batches checked, and those a remembered contact ended.
+    batches: u64,
+    remembered: u64,
     avx2: bool,
 }
 
@@ -277,6 +289,8 @@ impl BatchChecker {
             epoch: 0,
             states: 0,
             recent: [None; RECENT],
+            batches: 0,
+            remembered: 0,
             lanes: vec![F8::default(); robot.dof()],
             start: vec![0.0; robot.dof()],
             delta: vec![0.0; robot.dof()],
@@ -358,6 +372,8 @@ impl BatchChecker {
             }));
         self.map = map;
         self.states = 0;
+        self.batches = 0;
+        self.remembered = 0;
         self.recent = [None; RECENT];
         Some(self)
     }
@@ -471,6 +487,11 @@ impl BatchChecker {
         self.states
     }
 
+    /// Batches checked so far, and how many of them a remembered contact ended.
+    pub fn batches(&self) -> (u64, u64) {
+        (self.batches, self.remembered)
+    }
+
     /// Checks eight configurations given per variable (`lanes[j]` holds variable `j` of each).
     pub fn may_collide(&mut self, lanes: &[F8]) -> bool {
         self.lanes[..self.dof].copy_from_slice(&lanes[..self.dof]);
@@ -489,6 +510,7 @@ impl BatchChecker {
             self.fill_lanes(t);
         }
         self.epoch += 1;
+        self.batches += 1;
         if self.epoch == STATIC {
             // Stamps start again (those of links that never move stay valid).
             for stamp in self.cluster_stamp.iter_mut().chain(&mut self.sphere_stamp) {
@@ -507,7 +529,7 @@ impl BatchChecker {
     }
 
     #[inline(always)]
-    fn remember(&mut self, contact: (usize, usize, usize)) {
+    fn remember(&mut self, contact: (usize, usize, Touched)) {
         self.recent.rotate_right(1);
         self.recent[0] = Some(contact);
     }
@@ -621,11 +643,12 @@ impl BatchChecker {
             // the shape test and took twice the instructions.
             self.sphere_at[s] = self.poses[self.frame[l]].apply_const(c);
             let p = self.sphere_at[s];
-            let hit = match self.objects.get(j) {
-                Some(o) => penetrates(o, p, r),
-                None => lanes_touch_map(map, grid, p, r, ALL_LANES),
+            let hit = match j {
+                Touched::Object(j) => penetrates(&self.objects[j], p, r),
+                Touched::Map => lanes_touch_map(map, grid, p, r, ALL_LANES),
             };
             if hit {
+                self.remembered += 1;
                 self.recent[..=k].rotate_right(1);
                 return true;
             }
@@ -670,11 +693,12 @@ impl BatchChecker {
                     let p = *at;
                     let hit = penetrated(&self.objects, cluster_mask, p, r);
                     if hit != 0 {
-                        self.remember((l, s, hit.trailing_zeros() as usize));
+                        let object = Touched::Object(hit.trailing_zeros() as usize);
+                        self.remember((l, s, object));
                         return true;
                     }
                     if cluster_map != 0 && lanes_touch_map(map, grid, p, r, cluster_map) {
-                        self.remember((l, s, usize::MAX));
+                        self.remember((l, s, Touched::Map));
                         return true;
                     }
                 }
