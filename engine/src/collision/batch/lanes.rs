@@ -63,6 +63,22 @@ impl F8 {
         self.map(f32::abs)
     }
 
+    /// Lane-wise floor.
+    #[inline(always)]
+    pub fn floor(self) -> F8 {
+        self.map(f32::floor)
+    }
+
+    /// The lanes as integers, for lanes holding whole numbers in `[0, 2²²)` (others give
+    /// meaningless values): adding 1.5·2²³ puts the number in the low bits of the sum, so the
+    /// conversion is two vector instructions (a saturating `as` is scalar per lane).
+    #[inline(always)]
+    pub fn small_uints(self) -> [u32; LANES] {
+        const MAGIC: f32 = 12_582_912.0;
+        self.0
+            .map(|v| (v + MAGIC).to_bits().wrapping_sub(MAGIC.to_bits()))
+    }
+
     /// Lane-wise square root.
     #[inline(always)]
     pub fn sqrt(self) -> F8 {
@@ -171,6 +187,27 @@ impl Mask8 {
         {
             (0..LANES).fold(0, |m, k| m | (self.0[k] >> 31) << k)
         }
+    }
+}
+
+impl Mask8 {
+    /// The lanes whose bit is set in `bits`.
+    #[inline(always)]
+    pub fn from_bits(bits: u32) -> Mask8 {
+        Mask8(std::array::from_fn(|k| ((bits >> k) & 1).wrapping_neg()))
+    }
+
+    /// True when some lane is set: flags or-ed together, one vector test under AVX.
+    #[inline(always)]
+    pub fn any(self) -> bool {
+        let neg = self.0.map(|b| (b as i32) < 0);
+        neg.into_iter().fold(false, |a, b| a | b)
+    }
+
+    /// The lanes set in `self` and not in `o`.
+    #[inline(always)]
+    pub fn and_not(self, o: Mask8) -> Mask8 {
+        Mask8(std::array::from_fn(|k| self.0[k] & !o.0[k]))
     }
 }
 

@@ -19,7 +19,7 @@
 //! share, so a snapshot holding the grids costs the next update only the bricks it rewrites.
 
 use super::{BlockKey, OccupancyMap, VoxelKey};
-use crate::collision::batch::lanes::{ALL_LANES, F8, LANES};
+use crate::collision::batch::lanes::{Mask8, F8, LANES};
 use std::sync::Arc;
 
 /// Distances are stored in these fractions of a voxel.
@@ -31,6 +31,11 @@ type Cell = u8;
 
 /// Slack of the `f32` queries, metres: far above their rounding at robot scale.
 const F32_SLACK: f32 = 1e-5;
+
+/// Cell coordinates (in cells, on each axis) a grid stays within, so that they and any point
+/// the batch checker reads them for are exact in `f32`; a map reaching farther is checked
+/// exactly there.
+const CELL_LIMIT: f32 = 4_194_304.0;
 
 /// Largest grid built (cells, 2 bytes each); a map spread wider gets none and is checked
 /// exactly.
@@ -75,6 +80,23 @@ struct Level {
     half_diagonal: f64,
     /// Padding in cells: distances saturate here, and the grid reaches this far past the cover.
     pad: i32,
+    /// The figures [`Clearance::unclear8`] needs, in `f32`.
+    lanes: LaneGrid,
+}
+
+/// A grid's placement in `f32`, for queries in eight lanes.
+#[derive(Debug, Clone, Copy, Default)]
+struct LaneGrid {
+    res: f32,
+    inv_res: f32,
+    /// The first and last cell on each axis.
+    lo: [f32; 3],
+    last: [f32; 3],
+    bdims: [u32; 3],
+    /// A stored unit, metres.
+    step: f32,
+    /// Half diagonal of a cell plus the queries' slack, metres.
+    reach: f32,
 }
 
 /// Edge of a brick, cells.
@@ -226,7 +248,7 @@ impl Clearance {
     }
 
     /// True when a ball at `p` with radius `r` surely touches no occupied voxel; false means
-    /// it may (the map decides).
+    /// it may (the map decides). A centre with a NaN coordinate is never clear.
     #[inline]
     pub fn clear(&self, p: [f64; 3], r: f64) -> bool {
         let level = if r <= self.fine_radius {
@@ -237,11 +259,16 @@ impl Clearance {
         match level.clearance(p) {
             Some(d) => d >= r,
             None => {
-                // Beyond the padding: the occupied box bounds the distance.
+                // Beyond the padding: the occupied box bounds the distance. (A NaN coordinate
+                // makes the sum NaN: `d.max(0.0)` would drop it.)
                 let d2: f64 = (0..3)
                     .map(|a| {
                         let d = (self.occupied_lo[a] - p[a]).max(p[a] - self.occupied_hi[a]);
-                        d.max(0.0).powi(2)
+                        if d <= 0.0 {
+                            0.0
+                        } else {
+                            d * d
+                        }
                     })
                     .sum();
                 d2 >= r * r
@@ -253,69 +280,57 @@ impl Clearance {
     /// cannot clear: the batch checker's form of [`Clearance::clear`], in `f32` with a hair
     /// of slack.
     ///
-    /// The eight lanes' cells and offsets are computed together in plain lane arithmetic (a
-    /// few vector instructions inside the batch checker's AVX2 code): the floor by adding and
-    /// taking away 1.5·2²³ (exact below 2²² cells), the cell number from the bits of the sum.
-    /// Only the stored distances are read lane by lane. A lane outside the grid is decided by
+    /// Written in whole-lane operations, so that inside the batch checker's AVX2 code the
+    /// cells, their bricks and the offsets are a few vector instructions for all eight lanes
+    /// (computed for every lane, clamped into the grid, so no lane branches); only the stored
+    /// distances are read lane by lane. A lane outside the grid (or not finite) is decided by
     /// [`Clearance::clear`].
     #[inline(always)]
     pub fn unclear8(&self, p: [F8; 3], r: f32, lanes: u32) -> u32 {
-        /// 1.5·2²³: adding it rounds a float below 2²² to an integer, held in the low bits.
-        const MAGIC: f32 = 12_582_912.0;
-        /// Coordinates (in cells) past this are left to the exact test.
-        const LIMIT: f32 = 4_194_304.0;
         let g = if f64::from(r) <= self.fine_radius {
             &self.fine
         } else {
             &self.coarse
         };
-        let res = g.res as f32;
-        let inv = g.inv_res as f32;
-        let step = res / STEPS as f32;
-        let need = r + g.half_diagonal as f32 + F32_SLACK;
-        let mut floor = [[0.0f32; LANES]; 3];
-        let mut inside = [1u32; LANES];
-        // The brick of each lane's cell and the cell's place in it (as `Level::locate`).
+        let l = &g.lanes;
+        let res = F8::splat(l.res);
+        let inv = F8::splat(l.inv_res);
+        let zero = F8::splat(0.0);
         let mut brick = [0u32; LANES];
         let mut within = [0u32; LANES];
-        for a in 0..3 {
-            let (lo, dim, bdim) = (g.lo[a], g.dims[a] as u32, g.bdims[a] as u32);
+        let mut off2 = zero;
+        let mut inside = None;
+        for (a, &pa) in p.iter().enumerate() {
+            let x = pa * inv;
+            let f = x.floor();
+            // Cell coordinates are exact in `f32`: the grid lies within `CELL_LIMIT`.
+            let c = f - F8::splat(l.lo[a]);
+            let last = F8::splat(l.last[a]);
+            let ok = zero.le(c) & c.le(last) & x.abs().le(F8::splat(CELL_LIMIT));
+            inside = Some(inside.map_or(ok, |m| m & ok));
+            let k = c.max(zero).min(last).small_uints();
             for i in 0..LANES {
-                let x = p[a].0[i] * inv;
-                let near = (x + MAGIC) - MAGIC;
-                let f = if near > x { near - 1.0 } else { near };
-                floor[a][i] = f;
-                let k = ((f + MAGIC).to_bits() as i32).wrapping_sub(MAGIC.to_bits() as i32);
-                let c = k.wrapping_sub(lo) as u32;
-                inside[i] &= ((x.abs() < LIMIT) & (c < dim)) as u32;
-                brick[i] = brick[i].wrapping_mul(bdim).wrapping_add(c >> BRICK_BITS);
-                within[i] = (within[i] << BRICK_BITS) | (c & (BRICK as u32 - 1));
+                brick[i] = brick[i] * l.bdims[a] + (k[i] >> BRICK_BITS);
+                within[i] = (within[i] << BRICK_BITS) | (k[i] & (BRICK as u32 - 1));
             }
+            let o = pa - (f + F8::splat(0.5)) * res;
+            off2 = off2 + o * o;
         }
-        let lanes = lanes & ALL_LANES;
-        let mut d = [0.0f32; LANES];
-        let mut outside = 0u32;
-        let mut todo = lanes;
-        while todo != 0 {
-            let i = todo.trailing_zeros() as usize;
-            todo &= todo - 1;
-            if inside[i] != 0 {
-                d[i] = g.bricks[brick[i] as usize][within[i] as usize] as f32 * step;
-            } else {
-                outside |= 1 << i;
-            }
+        let d = F8(std::array::from_fn(|i| {
+            g.bricks[brick[i] as usize][within[i] as usize] as f32
+        }));
+        let need = F8::splat(r + l.reach);
+        // Not `<`: a lane with a NaN stays unclear.
+        let clear = need.le(d * F8::splat(l.step) - off2.sqrt());
+        let inside = inside.expect("three axes");
+        let asked = Mask8::from_bits(lanes);
+        let unclear = (asked & inside).and_not(clear);
+        let outside = asked.and_not(inside);
+        if !(unclear.any() || outside.any()) {
+            return 0;
         }
-        let mut unclear = 0u32;
-        for i in 0..LANES {
-            let o0 = p[0].0[i] - (floor[0][i] + 0.5) * res;
-            let o1 = p[1].0[i] - (floor[1][i] + 0.5) * res;
-            let o2 = p[2].0[i] - (floor[2][i] + 0.5) * res;
-            let off = (o0 * o0 + o1 * o1 + o2 * o2).sqrt();
-            // Not `<`: a lane with a NaN stays unclear.
-            let clear = d[i] - off >= need;
-            unclear |= (!clear as u32) << i;
-        }
-        let mut out = unclear & lanes & !outside;
+        let mut out = unclear.bits();
+        let mut outside = outside.bits();
         while outside != 0 {
             let i = outside.trailing_zeros() as usize;
             outside &= outside - 1;
@@ -349,6 +364,7 @@ impl Level {
             far: Arc::new([cap; BRICK * BRICK * BRICK]),
             half_diagonal: res * 3f64.sqrt() / 2.0,
             pad,
+            lanes: LaneGrid::default(),
         };
         level.grow((lo, hi)).then_some(level)
     }
@@ -390,8 +406,12 @@ impl Level {
         let bdims =
             [0, 1, 2].map(|a| ((hi[a] + self.pad).div_euclid(b) - new_lo[a] / b + 1) as usize);
         let dims = bdims.map(|d| d * BRICK);
+        let limit = CELL_LIMIT as i64;
+        let within = (0..3).all(|a| {
+            (new_lo[a] as i64).abs() < limit && (new_lo[a] as i64 + dims[a] as i64) < limit
+        });
         match dims.iter().try_fold(1usize, |n, &d| n.checked_mul(d)) {
-            Some(n) if n <= MAX_CELLS => {
+            Some(n) if n <= MAX_CELLS && within => {
                 let mut bricks = vec![self.far.clone(); bdims.iter().product()];
                 let off = [0, 1, 2].map(|a| ((self.lo[a] - new_lo[a]) / b) as usize);
                 for x in 0..self.bdims[0] {
@@ -407,6 +427,15 @@ impl Level {
                 self.dims = dims;
                 self.bdims = bdims;
                 self.bricks = bricks;
+                self.lanes = LaneGrid {
+                    res: self.res as f32,
+                    inv_res: self.inv_res as f32,
+                    lo: new_lo.map(|v| v as f32),
+                    last: dims.map(|d| (d - 1) as f32),
+                    bdims: bdims.map(|d| d as u32),
+                    step: (self.res / STEPS) as f32,
+                    reach: self.half_diagonal as f32 + F32_SLACK,
+                };
                 true
             }
             _ => false,
@@ -606,6 +635,7 @@ fn distance_transform(keys: &[VoxelKey], lo: VoxelKey, dims: [usize; 3], pad: f6
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::collision::batch::lanes::ALL_LANES;
     use crate::world::map::MapParams;
     use proptest::prelude::*;
 
@@ -634,6 +664,24 @@ mod tests {
             map.set_voxel(k, true);
         }
         map
+    }
+
+    #[test]
+    fn a_lane_with_a_nan_centre_stays_unclear() {
+        let c = Clearance::of(&map_of(&[[0, 0, 0]]), 0.2).unwrap();
+        let far = F8::splat(5.0);
+        let mut x = far;
+        x.0[3] = f32::NAN;
+        let mut y = far;
+        y.0[5] = f32::NAN;
+        assert_eq!(c.unclear8([x, y, far], 0.05, ALL_LANES), 1 << 3 | 1 << 5);
+    }
+
+    #[test]
+    fn a_map_past_the_lane_limit_has_no_grid() {
+        let far = CELL_LIMIT as i32;
+        assert!(Clearance::of(&map_of(&[[far, 0, 0]]), 0.2).is_none());
+        assert!(Clearance::of(&map_of(&[[far / 2, 0, 0]]), 0.2).is_some());
     }
 
     #[test]
