@@ -1008,7 +1008,7 @@ fn unclear_lanes_of_link(grid: Option<&Clearance>, b: [F8; 3], br: f32) -> u32 {
 }
 
 /// True when the ball touches an occupied voxel in one of `lanes` (bits): the grid clears
-/// what it can, the map's voxels decide the rest.
+/// what it can and confirms the contacts it can, the map's voxels decide the rest.
 #[inline(always)]
 fn lanes_touch_map(
     map: Option<&OccupancyMap>,
@@ -1020,7 +1020,13 @@ fn lanes_touch_map(
     let Some(m) = map else {
         return false;
     };
-    let mut unclear = unclear_lanes(grid, p, r, lanes);
+    let mut unclear = match grid {
+        Some(g) if lanes != 0 => match g.sphere8(p, r, lanes) {
+            Some(unclear) => unclear,
+            None => return true,
+        },
+        _ => lanes,
+    };
     while unclear != 0 {
         let i = unclear.trailing_zeros() as usize;
         unclear &= unclear - 1;

@@ -287,11 +287,24 @@ impl Clearance {
     /// [`Clearance::clear`].
     #[inline(always)]
     pub fn unclear8(&self, p: [F8; 3], r: f32, lanes: u32) -> u32 {
-        let g = if f64::from(r) <= self.fine_radius {
-            &self.fine
-        } else {
-            &self.coarse
-        };
+        self.test8::<false>(p, r, lanes).unwrap_or(lanes)
+    }
+
+    /// [`Clearance::unclear8`] for balls of the robot's geometry, which also confirms
+    /// contacts: `None` when the ball surely touches an occupied voxel in some lane of
+    /// `lanes`. From the same read: the nearest occupied voxel centre is nearer than the
+    /// cell's distance (rounded down, so plus one stored unit) and the ball's offset from the
+    /// cell centre, so a ball larger than that holds it. (The fine grid only: a coarse cell is
+    /// a block, whose occupied voxel may lie anywhere in it.)
+    #[inline(always)]
+    pub fn sphere8(&self, p: [F8; 3], r: f32, lanes: u32) -> Option<u32> {
+        self.test8::<true>(p, r, lanes)
+    }
+
+    #[inline(always)]
+    fn test8<const CONFIRM: bool>(&self, p: [F8; 3], r: f32, lanes: u32) -> Option<u32> {
+        let fine = f64::from(r) <= self.fine_radius;
+        let g = if fine { &self.fine } else { &self.coarse };
         let l = &g.lanes;
         let res = F8::splat(l.res);
         let inv = F8::splat(l.inv_res);
@@ -320,14 +333,22 @@ impl Clearance {
             g.bricks[brick[i] as usize][within[i] as usize] as f32
         }));
         let need = F8::splat(r + l.reach);
+        let d = d * F8::splat(l.step);
+        let off = off2.sqrt();
         // Not `<`: a lane with a NaN stays unclear.
-        let clear = need.le(d * F8::splat(l.step) - off2.sqrt());
+        let clear = need.le(d - off);
         let inside = inside.expect("three axes");
         let asked = Mask8::from_bits(lanes);
+        if CONFIRM && fine {
+            let touch = (d + off + F8::splat(l.step + F32_SLACK)).le(F8::splat(r));
+            if (touch & asked & inside).any() {
+                return None;
+            }
+        }
         let unclear = (asked & inside).and_not(clear);
         let outside = asked.and_not(inside);
         if !(unclear.any() || outside.any()) {
-            return 0;
+            return Some(0);
         }
         let mut out = unclear.bits();
         let mut outside = outside.bits();
@@ -339,7 +360,7 @@ impl Clearance {
                 out |= 1 << i;
             }
         }
-        out
+        Some(out)
     }
 
     /// Cells in the grids.
@@ -678,6 +699,20 @@ mod tests {
     }
 
     #[test]
+    fn a_ball_holding_an_occupied_voxel_is_confirmed() {
+        let map = map_of(&[[0, 0, 0]]);
+        let c = Clearance::of(&map, 0.2).unwrap();
+        let p = map
+            .voxel_center([0, 0, 0])
+            .map(|v| F8::splat(v as f32 + 0.004));
+        let res = map.resolution() as f32;
+        assert_eq!(c.sphere8(p, 2.0 * res, 1 << 2), None);
+        // Not in a lane not asked, nor by a ball that only grazes the voxel.
+        assert_eq!(c.sphere8(p, 2.0 * res, 0), Some(0));
+        assert!(c.sphere8(p, 0.4 * res, ALL_LANES).is_some());
+    }
+
+    #[test]
     fn a_map_past_the_lane_limit_has_no_grid() {
         let far = CELL_LIMIT as i32;
         assert!(Clearance::of(&map_of(&[[far, 0, 0]]), 0.2).is_none());
@@ -762,6 +797,29 @@ mod tests {
                 want |= (!clear as u32) << i;
             }
             prop_assert_eq!(c.unclear8(p, r, lanes), want);
+        }
+
+        /// A contact the grid confirms is one the voxels confirm in a lane asked; otherwise the
+        /// answer is `unclear8`'s.
+        #[test]
+        fn confirmed_contacts_are_contacts(
+            voxels in prop::collection::vec(prop::array::uniform3(-6i32..6), 1..40),
+            centres in prop::collection::vec(prop::array::uniform3(-0.1f32..0.1), 8),
+            r in 0.0f32..0.08,
+            lanes in 0u32..256,
+        ) {
+            let map = map_of(&voxels);
+            let c = Clearance::of(&map, 0.2).unwrap();
+            let p: [F8; 3] = std::array::from_fn(|a| F8(std::array::from_fn(|i| centres[i][a])));
+            match c.sphere8(p, r, lanes) {
+                Some(unclear) => prop_assert_eq!(unclear, c.unclear8(p, r, lanes)),
+                None => {
+                    let touches = (0..LANES).filter(|i| lanes >> i & 1 != 0).any(|i| {
+                        map.sphere_touches_voxels(centres[i].map(f64::from), f64::from(r))
+                    });
+                    prop_assert!(touches, "confirmed, but no lane asked touches");
+                }
+            }
         }
 
         /// Grids updated around the changes hold what grids built anew hold, cell for cell,
