@@ -321,6 +321,7 @@ impl Clearance {
             let last = F8::splat(l.last[a]);
             let ok = zero.le(c) & c.le(last) & x.abs().le(F8::splat(CELL_LIMIT));
             inside = Some(inside.map_or(ok, |m| m & ok));
+            // Whole numbers below 2²⁰ (MAX_CELLS / 64: the other two axes hold a brick each).
             let k = c.max(zero).min(last).small_uints();
             for i in 0..LANES {
                 brick[i] = brick[i] * l.bdims[a] + (k[i] >> BRICK_BITS);
