@@ -37,7 +37,7 @@ const F32_SLACK: f32 = 1e-5;
 /// exactly there.
 const CELL_LIMIT: f32 = 4_194_304.0;
 
-/// Largest grid built (cells, 2 bytes each); a map spread wider gets none and is checked
+/// Largest grid built (cells, one byte each); a map spread wider gets none and is checked
 /// exactly.
 pub const MAX_CELLS: usize = 1 << 26;
 
