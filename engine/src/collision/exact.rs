@@ -290,7 +290,8 @@ impl<'a> ExactChecker<'a> {
         let names = self.robot.links();
         for &li in links {
             for part in model.link_parts(li) {
-                let pose = self.poses[li] * part.origin;
+                // The part's pose is composed only for the exact tests.
+                let pose = || self.poses[li] * part.origin;
                 let c = (self.poses[li] * Point3::from(part.center)).coords;
                 for (o, obj) in self.objects.iter().enumerate() {
                     // Distance from the part's bounding sphere centre to the object's box.
@@ -298,14 +299,14 @@ impl<'a> ExactChecker<'a> {
                     if out.norm() > part.radius {
                         continue;
                     }
-                    if convex_touch(&part.convex, &pose, &obj.convex, &obj.pose) {
+                    if convex_touch(&part.convex, &pose(), &obj.convex, &obj.pose) {
                         return Some(Contact::Object {
                             link: names[li].name.clone(),
                             object: self.env.objects()[o].name.clone(),
                         });
                     }
                 }
-                if self.touches_map(part, &pose, [c.x, c.y, c.z]) {
+                if self.touches_map(part, pose, [c.x, c.y, c.z]) {
                     return Some(Contact::Object {
                         link: names[li].name.clone(),
                         object: "occupancy map".into(),
@@ -324,7 +325,7 @@ impl<'a> ExactChecker<'a> {
         None
     }
 
-    fn touches_map(&self, part: &ExactPart, pose: &Pose, center: [f64; 3]) -> bool {
+    fn touches_map(&self, part: &ExactPart, pose: impl Fn() -> Pose, center: [f64; 3]) -> bool {
         let Some(map) = self.env.map() else {
             return false;
         };
@@ -332,13 +333,21 @@ impl<'a> ExactChecker<'a> {
         if !map.sphere_collides(center, r) {
             return false;
         }
+        let pose = &pose();
         let half = map.resolution() / 2.0;
         let voxel = Convex::Cuboid(Vector3::repeat(half));
         let aabb = part.shape.compute_aabb(&super::parry::to_parry_pose(pose));
         let lo = [aabb.mins.x, aabb.mins.y, aabb.mins.z].map(|v| v as f64 - half);
         let hi = [aabb.maxs.x, aabb.maxs.y, aabb.maxs.z].map(|v| v as f64 + half);
+        // A voxel farther from the part's bounding sphere than a hair (well above the
+        // contact tolerance) cannot touch the part.
+        let reach2 = (r + 1e-6) * (r + 1e-6);
         map.any_occupied_in(lo, hi, |v| {
             (0..3).all(|k| v[k] >= lo[k] && v[k] <= hi[k])
+                && (0..3)
+                    .map(|k| ((center[k] - v[k]).abs() - half).max(0.0).powi(2))
+                    .sum::<f64>()
+                    <= reach2
                 && convex_touch(
                     &part.convex,
                     pose,
@@ -361,6 +370,16 @@ impl<'a> super::ConfigCheck<'a> for ExactChecker<'a> {
 
 /// True when links `a` and `b` (at link poses `poses`) touch in the exact geometry.
 pub fn links_touch(model: &ExactModel, poses: &[Pose], a: usize, b: usize) -> bool {
+    // The links' bounding spheres first: most pairs are far apart. They hold every part's
+    // sphere, so (with a hair of slack for rounding) this skips only pairs whose parts the
+    // test below would all skip.
+    let (Some((ba, ra)), Some((bb, rb))) = (model.link_bound(a), model.link_bound(b)) else {
+        return false;
+    };
+    let (ba, bb) = (poses[a] * Point3::from(ba), poses[b] * Point3::from(bb));
+    if (ba - bb).norm() > ra + rb + 1e-6 {
+        return false;
+    }
     for pa in model.link_parts(a) {
         let ca = poses[a] * Point3::from(pa.center);
         let pose_a = poses[a] * pa.origin;
@@ -375,4 +394,57 @@ pub fn links_touch(model: &ExactModel, poses: &[Pose], a: usize, b: usize) -> bo
         }
     }
     false
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::planning::PlannerRng;
+    use rand::SeedableRng;
+
+    /// The link-level sphere test only skips pairs no two parts of which touch: on random
+    /// configurations, `links_touch` answers as every part pair tested with no prefilter.
+    #[test]
+    fn links_touch_answers_as_every_part_pair() {
+        for name in ["fetch", "panda"] {
+            let robot = Robot::builtin(name).unwrap();
+            let model = robot.exact_model();
+            let mut rng = PlannerRng::seed_from_u64(11);
+            let mut q = vec![0.0; robot.dof()];
+            let mut poses = vec![Pose::identity(); robot.links().len()];
+            let (mut touching, mut bounds_met) = (0, 0);
+            for _ in 0..300 {
+                robot.sample_uniform(&mut rng, &mut q);
+                robot.forward_kinematics(&q, &mut poses);
+                for a in 0..poses.len() {
+                    for b in a + 1..poses.len() {
+                        let oracle = model.link_parts(a).iter().any(|pa| {
+                            model.link_parts(b).iter().any(|pb| {
+                                convex_touch(
+                                    &pa.convex,
+                                    &(poses[a] * pa.origin),
+                                    &pb.convex,
+                                    &(poses[b] * pb.origin),
+                                )
+                            })
+                        });
+                        assert_eq!(links_touch(model, &poses, a, b), oracle, "{name} {a} {b}");
+                        touching += usize::from(oracle);
+                        if let (Some((ca, ra)), Some((cb, rb))) =
+                            (model.link_bound(a), model.link_bound(b))
+                        {
+                            let d =
+                                (poses[a] * Point3::from(ca) - poses[b] * Point3::from(cb)).norm();
+                            bounds_met += usize::from(d <= ra + rb && !oracle);
+                        }
+                    }
+                }
+            }
+            // Both answers occur, and bounds that meet without a contact too.
+            assert!(
+                touching > 0 && bounds_met > 0,
+                "{name}: {touching} {bounds_met}"
+            );
+        }
+    }
 }
