@@ -141,6 +141,9 @@ pub struct ExactChecker<'a> {
     robot: &'a Robot,
     env: &'a Environment,
     poses: Vec<Pose>,
+    /// Per link: its bounding sphere's centre in the world, as of the last configuration
+    /// (placed once per check: a link meets several others).
+    bounds: Vec<Vector3<f64>>,
     objects: Vec<ExactObject>,
     /// The robot-only part: which links and pairs move.
     rest: &'a Rest,
@@ -196,7 +199,7 @@ impl<'a> ExactChecker<'a> {
     /// The contact between links that never move apart, if any (see
     /// [`ExactChecker::static_contact`]): the same in every environment.
     pub(crate) fn fixed_self_contact(robot: &Robot, rest: &Rest) -> Option<Contact> {
-        let sut = ExactChecker::at_rest(robot, super::prepared::nothing(), rest);
+        let mut sut = ExactChecker::at_rest(robot, super::prepared::nothing(), rest);
         sut.first_contact(&[], &rest.fixed_pairs)
     }
 
@@ -220,6 +223,7 @@ impl<'a> ExactChecker<'a> {
             robot,
             env,
             poses: rest.poses.clone(),
+            bounds: vec![Vector3::zeros(); rest.poses.len()],
             objects,
             rest,
             static_contact: None,
@@ -257,7 +261,8 @@ impl<'a> ExactChecker<'a> {
             return Some(c.clone());
         }
         self.robot.forward_kinematics(q, &mut self.poses);
-        self.first_contact(&self.rest.moving_links, &self.rest.moving_pairs)
+        let rest = self.rest;
+        self.first_contact(&rest.moving_links, &rest.moving_pairs)
     }
 
     /// True when `q` is free in the exact geometry.
@@ -285,8 +290,17 @@ impl<'a> ExactChecker<'a> {
         None
     }
 
-    fn first_contact(&self, links: &[usize], pairs: &[(usize, usize)]) -> Option<Contact> {
+    /// The first contact of `links` with the world, else of `pairs` with each other, at the
+    /// link poses held.
+    fn first_contact(&mut self, links: &[usize], pairs: &[(usize, usize)]) -> Option<Contact> {
         let model = self.robot.exact_model();
+        if !pairs.is_empty() {
+            for (l, (pose, at)) in self.poses.iter().zip(&mut self.bounds).enumerate() {
+                if let Some((c, _)) = model.link_bound(l) {
+                    *at = (pose * Point3::from(c)).coords;
+                }
+            }
+        }
         let names = self.robot.links();
         for &li in links {
             for part in model.link_parts(li) {
@@ -315,7 +329,7 @@ impl<'a> ExactChecker<'a> {
             }
         }
         for &(a, b) in pairs {
-            if links_touch(self.robot.exact_model(), &self.poses, a, b) {
+            if placed_links_touch(model, &self.poses, (a, self.bounds[a]), (b, self.bounds[b])) {
                 return Some(Contact::SelfCollision {
                     link_a: names[a].name.clone(),
                     link_b: names[b].name.clone(),
@@ -370,13 +384,30 @@ impl<'a> super::ConfigCheck<'a> for ExactChecker<'a> {
 
 /// True when links `a` and `b` (at link poses `poses`) touch in the exact geometry.
 pub fn links_touch(model: &ExactModel, poses: &[Pose], a: usize, b: usize) -> bool {
+    let placed = |l: usize| {
+        model
+            .link_bound(l)
+            .map(|(c, _)| (poses[l] * Point3::from(c)).coords)
+    };
+    match (placed(a), placed(b)) {
+        (Some(ba), Some(bb)) => placed_links_touch(model, poses, (a, ba), (b, bb)),
+        _ => false,
+    }
+}
+
+/// [`links_touch`] with the links' bounding-sphere centres already placed in the world.
+fn placed_links_touch(
+    model: &ExactModel,
+    poses: &[Pose],
+    (a, ba): (usize, Vector3<f64>),
+    (b, bb): (usize, Vector3<f64>),
+) -> bool {
     // The links' bounding spheres first: most pairs are far apart. They hold every part's
     // sphere, so (with a hair of slack for rounding) this skips only pairs whose parts the
     // test below would all skip.
-    let (Some((ba, ra)), Some((bb, rb))) = (model.link_bound(a), model.link_bound(b)) else {
+    let (Some((_, ra)), Some((_, rb))) = (model.link_bound(a), model.link_bound(b)) else {
         return false;
     };
-    let (ba, bb) = (poses[a] * Point3::from(ba), poses[b] * Point3::from(bb));
     if (ba - bb).norm() > ra + rb + 1e-6 {
         return false;
     }
@@ -401,6 +432,43 @@ mod tests {
     use super::*;
     use crate::planning::PlannerRng;
     use rand::SeedableRng;
+
+    /// On random configurations in an empty world, the checker names the first moving pair
+    /// any two parts of which touch (every part pair tested, no prefilter), else nothing.
+    #[test]
+    fn contact_names_the_first_touching_pair() {
+        let env = Environment::new();
+        for name in ["fetch", "panda"] {
+            let robot = Robot::builtin(name).unwrap();
+            let model = robot.exact_model();
+            let mut sut = ExactChecker::new(&robot, &env);
+            let mut rng = PlannerRng::seed_from_u64(5);
+            let mut q = vec![0.0; robot.dof()];
+            let mut poses = vec![Pose::identity(); robot.links().len()];
+            let (mut free, mut touching) = (0, 0);
+            for _ in 0..300 {
+                robot.sample_uniform(&mut rng, &mut q);
+                robot.forward_kinematics(&q, &mut poses);
+                let names = robot.links();
+                let oracle = sut.rest.moving_pairs.iter().find_map(|&(a, b)| {
+                    let touch = model.link_parts(a).iter().any(|pa| {
+                        model.link_parts(b).iter().any(|pb| {
+                            let (ta, tb) = (poses[a] * pa.origin, poses[b] * pb.origin);
+                            convex_touch(&pa.convex, &ta, &pb.convex, &tb)
+                        })
+                    });
+                    touch.then(|| Contact::SelfCollision {
+                        link_a: names[a].name.clone(),
+                        link_b: names[b].name.clone(),
+                    })
+                });
+                assert_eq!(sut.contact(&q), oracle, "{name} {q:?}");
+                free += usize::from(oracle.is_none());
+                touching += usize::from(oracle.is_some());
+            }
+            assert!(free > 0 && touching > 0, "{name}: {free} {touching}");
+        }
+    }
 
     /// The link-level sphere test only skips pairs no two parts of which touch: on random
     /// configurations, `links_touch` answers as every part pair tested with no prefilter.

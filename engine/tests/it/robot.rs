@@ -3,7 +3,7 @@
 
 include!("../../../tests/fixtures/testbot.rs");
 
-use ember_engine::collision::checker::DEFAULT_RESOLUTION;
+use ember_engine::collision::checker::{Contact, DEFAULT_RESOLUTION};
 use ember_engine::collision::exact::ExactChecker;
 use ember_engine::collision::{Shape, SphereChecker};
 use ember_engine::planning::{
@@ -150,6 +150,47 @@ fn joints_outside_the_group_take_the_start_state() {
     assert!(robot
         .with_joint_values([("camera_joint", f64::NAN)])
         .is_err());
+    std::fs::remove_dir_all(&bot.packages).ok();
+}
+
+/// Links that never move apart (here the camera, on a joint outside the group) and overlap
+/// block every configuration, named; the same pair listed as allowed to touch blocks nothing.
+#[test]
+fn overlapping_links_that_never_move_apart_block_every_configuration() {
+    let bot = testbot::write("fixedpair");
+    // The camera box pushed into the base box.
+    let urdf = std::fs::read_to_string(&bot.urdf).unwrap();
+    let sunk = urdf.replace(
+        r#"<origin xyz="0.25 0 0" rpy="0 0 0"/><geometry><box size="0.05"#,
+        r#"<origin xyz="0.15 0 0" rpy="0 0 0"/><geometry><box size="0.05"#,
+    );
+    assert_ne!(sunk, urdf);
+    std::fs::write(&bot.urdf, sunk).unwrap();
+    let allowed = load(&bot);
+    let env = Environment::new();
+    assert_eq!(ExactChecker::new(&allowed, &env).static_contact(), None);
+    let srdf = std::fs::read_to_string(&bot.srdf).unwrap();
+    let pair = r#"<disable_collisions link1="base_link" link2="camera_link" reason="Adjacent"/>"#;
+    assert!(srdf.contains(pair));
+    std::fs::write(&bot.srdf, srdf.replace(pair, "")).unwrap();
+    let robot = load(&bot);
+    let contact = ExactChecker::new(&robot, &env).static_contact().cloned();
+    let named = |c: &Contact| {
+        matches!(c, Contact::SelfCollision { link_a, link_b }
+        if [link_a.as_str(), link_b.as_str()] == ["base_link", "camera_link"]
+            || [link_a.as_str(), link_b.as_str()] == ["camera_link", "base_link"])
+    };
+    assert!(contact.as_ref().is_some_and(named), "{contact:?}");
+    assert!(SphereChecker::new(&robot, &env).blocked());
+    let request = PlanRequest {
+        start: vec![0.0; 3],
+        goal: Goal::Joints(vec![vec![0.5, 0.8, 0.8]]),
+        params: PlannerParams::default(),
+    };
+    match planning::plan(&robot, &env, &request, &mut UniformSampler) {
+        Err(PlanError::StartInCollision(c)) => assert!(named(&c), "{c}"),
+        other => panic!("{other:?}"),
+    }
     std::fs::remove_dir_all(&bot.packages).ok();
 }
 
