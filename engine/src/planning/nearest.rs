@@ -15,7 +15,7 @@
 
 use crate::collision::batch::lanes::has_avx2;
 use crate::robot::config_space::wrap_angle;
-use std::f64::consts::TAU;
+use std::f64::consts::{PI, TAU};
 
 /// Points per leaf before it splits (one less than a multiple of eight, so a leaf's slots
 /// fill whole vectors).
@@ -52,8 +52,12 @@ pub struct NearestIndex {
     len: Vec<u32>,
     /// Query stack (node, lower bound of its distance²), kept between queries.
     stack: Vec<(u32, f64)>,
+    /// The query, wrapped, and in `f32`.
     target: Vec<f64>,
     target32: Vec<f32>,
+    /// Per joint: the range values are stored in, [-π, π) on continuous joints, else all.
+    inside_lo: Vec<f64>,
+    inside_hi: Vec<f64>,
     avx2: bool,
 }
 
@@ -79,6 +83,14 @@ impl NearestIndex {
             stack: Vec::with_capacity(64),
             target: vec![0.0; dof],
             target32: vec![0.0; dof],
+            inside_lo: continuous
+                .iter()
+                .map(|&c| if c { -PI } else { f64::NEG_INFINITY })
+                .collect(),
+            inside_hi: continuous
+                .iter()
+                .map(|&c| if c { PI } else { f64::INFINITY })
+                .collect(),
             avx2: has_avx2(),
         }
     }
@@ -125,60 +137,79 @@ impl NearestIndex {
         if self.children.is_empty() {
             return None;
         }
-        let mut q = std::mem::take(&mut self.target);
-        self.wrapped(target, &mut q);
+        self.set_query(target);
+        let (leaf, k) = match self.children[0] {
+            // A tree of one bucket (most trees, most of the time): no walk.
+            [NONE, leaf] => (leaf as usize, self.leaf_nearest(leaf as usize).1),
+            _ => self.walk(),
+        };
+        // The lanes chose; the exact coordinates give the distance.
+        Some((self.ids[leaf * SLOTS + k], self.exact_dist2(leaf, k)))
+    }
+
+    /// Holds `p` as the query: wrapped, and in `f32`. Values already inside their range
+    /// (every joint of a sample within the limits) are copied in one pass.
+    #[inline]
+    fn set_query(&mut self, p: &[f64]) {
+        let dof = self.dof;
+        let (p, lo, hi) = (&p[..dof], &self.inside_lo[..dof], &self.inside_hi[..dof]);
+        let (q, q32) = (&mut self.target[..dof], &mut self.target32[..dof]);
+        let mut outside = false;
+        for j in 0..dof {
+            let v = p[j];
+            outside |= !(v >= lo[j] && v < hi[j]);
+            q[j] = v;
+            q32[j] = v as f32;
+        }
+        if outside {
+            let mut q = std::mem::take(&mut self.target);
+            self.wrapped(p, &mut q);
+            for (l, &v) in self.target32.iter_mut().zip(&q) {
+                *l = v as f32;
+            }
+            self.target = q;
+        }
+    }
+
+    /// The leaf and slot of the point nearest to the query, down the tree of buckets: nodes
+    /// nearest box first, skipping any box farther than the best point found.
+    fn walk(&mut self) -> (usize, usize) {
         let mut stack = std::mem::take(&mut self.stack);
         stack.clear();
-        let mut best = (f64::INFINITY, NONE);
+        stack.push((0, 0.0));
+        let mut best = f64::INFINITY;
         let mut best_slot = (0, 0);
-        let mut q32 = std::mem::take(&mut self.target32);
-        for (l, &v) in q32.iter_mut().zip(q.iter()) {
-            *l = v as f32;
-        }
-        match self.children[0] {
-            // A tree of one bucket (most trees, most of the time): no walk.
-            [NONE, leaf] => {
-                let (d2, k) = self.leaf_nearest(leaf as usize, &q32);
-                best = (d2 as f64, self.ids[leaf as usize * SLOTS + k]);
-                best_slot = (leaf as usize, k);
-            }
-            _ => stack.push((0, 0.0)),
-        }
         while let Some((at, bound)) = stack.pop() {
-            if bound >= best.0 {
+            if bound >= best {
                 continue;
             }
             let [a, b] = self.children[at as usize];
             if a == NONE {
                 let leaf = b as usize;
-                let (nearest_here, k) = self.leaf_nearest(leaf, &q32);
-                if nearest_here as f64 >= best.0 {
+                let (nearest_here, k) = self.leaf_nearest(leaf);
+                if nearest_here as f64 >= best {
                     continue;
                 }
-                best = (nearest_here as f64, self.ids[leaf * SLOTS + k]);
+                best = nearest_here as f64;
                 best_slot = (leaf, k);
                 continue;
             }
-            let da = self.box_dist2(a as usize, &q);
-            let db = self.box_dist2(b as usize, &q);
+            let da = self.box_dist2(a as usize);
+            let db = self.box_dist2(b as usize);
             let (near, dn, far, df) = if da <= db {
                 (a, da, b, db)
             } else {
                 (b, db, a, da)
             };
-            if df < best.0 {
+            if df < best {
                 stack.push((far, df));
             }
-            if dn < best.0 {
+            if dn < best {
                 stack.push((near, dn));
             }
         }
         self.stack = stack;
-        self.target32 = q32;
-        // The lanes chose; the exact coordinates give the distance.
-        let d2 = self.exact_dist2(best_slot.0, best_slot.1, &q);
-        self.target = q;
-        Some((best.1, d2))
+        best_slot
     }
 
     /// `p` with continuous joints wrapped into [-π, π).
@@ -238,20 +269,20 @@ impl NearestIndex {
         self.len[leaf] += 1;
     }
 
-    /// Squared distance from `q` (wrapped) to point `k` of `leaf`, in `f64`.
-    fn exact_dist2(&self, leaf: usize, k: usize, q: &[f64]) -> f64 {
-        let point = self.coords[leaf * SLOTS * self.dof + k..]
-            .iter()
-            .step_by(SLOTS);
-        q.iter()
-            .zip(point)
-            .zip(&self.continuous)
-            .map(|((&qj, &pj), &c)| {
-                let d = qj - pj;
-                let d = if c { wrap_angle(d) } else { d };
-                d * d
-            })
-            .sum()
+    /// Squared distance from the query to point `k` of `leaf`, in `f64`. Both are wrapped, so
+    /// on a continuous joint the way around is |d| or 2π − |d| (`period` is infinite on the
+    /// others): what [`wrap_angle`] of the difference gives, squared.
+    fn exact_dist2(&self, leaf: usize, k: usize) -> f64 {
+        let dof = self.dof;
+        let point = &self.coords[leaf * SLOTS * dof..][..SLOTS * dof];
+        let (q, period) = (&self.target[..dof], &self.period[..dof]);
+        let mut d2 = 0.0;
+        for j in 0..dof {
+            let d = (q[j] - point[j * SLOTS + k]).abs();
+            let d = d.min(period[j] - d);
+            d2 += d * d;
+        }
+        d2
     }
 
     fn coord(&self, leaf: usize, j: usize, k: usize) -> f64 {
@@ -317,7 +348,8 @@ impl NearestIndex {
     /// The least squared distance (in `f32`) from `q` (wrapped) to a point of `leaf`, and the
     /// first slot at it.
     #[inline]
-    fn leaf_nearest(&self, leaf: usize, q: &[f32]) -> (f32, usize) {
+    fn leaf_nearest(&self, leaf: usize) -> (f32, usize) {
+        let q = &self.target32;
         let blocks = (self.len[leaf] as usize).div_ceil(8);
         let coords = &self.lanes[leaf * SLOTS * self.dof..][..SLOTS * self.dof];
         #[cfg(target_arch = "x86_64")]
@@ -332,8 +364,8 @@ impl NearestIndex {
     /// the gap below or above the box, and on continuous joints the way around the circle
     /// when shorter (`period` is 2π there and infinite elsewhere).
     #[inline]
-    fn box_dist2(&self, at: usize, p: &[f64]) -> f64 {
-        let dof = self.dof;
+    fn box_dist2(&self, at: usize) -> f64 {
+        let (dof, p) = (self.dof, &self.target);
         let (lo, hi) = (&self.lo[at * dof..][..dof], &self.hi[at * dof..][..dof]);
         let (p, period) = (&p[..dof], &self.period[..dof]);
         let mut d2 = 0.0;
