@@ -163,12 +163,31 @@ const EPS: f64 = 1e-10;
 
 /// The distance between `a` and `b`; 0 when they touch or overlap.
 pub fn distance(a: &Placed, b: &Placed) -> f64 {
-    run(a, b, f64::INFINITY)
+    run(&Frame::of(a), &Frame::of(b), f64::INFINITY).0
 }
 
 /// True when `a` and `b` are more than `gap` apart (stops as soon as that is certain).
 pub fn separated(a: &Placed, b: &Placed, gap: f64) -> bool {
-    run(a, b, gap) > gap
+    separated_along(a, b, gap, &mut V::zeros())
+}
+
+/// [`separated`], trying `axis` first: when the shapes' extents along it are more than `gap`
+/// apart, that settles it with one support point each. Otherwise GJK decides, and `axis` is
+/// left holding its last direction. Any axis gives a true answer; the last one of the same
+/// pair a small motion ago (the states along an edge) usually settles the next.
+pub fn separated_along(a: &Placed, b: &Placed, gap: f64, axis: &mut V) -> bool {
+    let (fa, fb) = (Frame::of(a), Frame::of(b));
+    let n2 = axis.norm_squared();
+    if n2 > 0.0 {
+        // The point of A − B least far along the axis bounds the distance from below.
+        let w = fa.support(&-*axis) - fb.support(axis);
+        if axis.dot(&w) > gap * n2.sqrt() {
+            return true;
+        }
+    }
+    let (lower, v) = run(&fa, &fb, gap);
+    *axis = v;
+    lower > gap
 }
 
 /// The simplex: up to four points of the Minkowski difference.
@@ -189,9 +208,9 @@ impl Simplex {
     }
 }
 
-/// GJK; returns a lower bound of the distance, or as soon as the bound exceeds `stop`.
-fn run(a: &Placed, b: &Placed, stop: f64) -> f64 {
-    let (fa, fb) = (Frame::of(a), Frame::of(b));
+/// GJK; returns a lower bound of the distance, or as soon as the bound exceeds `stop`, with
+/// the last direction (the point of A − B nearest the origin found).
+fn run(fa: &Frame, fb: &Frame, stop: f64) -> (f64, V) {
     // A point of the Minkowski difference A − B in direction d.
     let support = |d: &V| fa.support(d) - fb.support(&-d);
     let start = fa.translation - fb.translation;
@@ -201,30 +220,30 @@ fn run(a: &Placed, b: &Placed, stop: f64) -> f64 {
     for _ in 0..128 {
         let vv = v.norm_squared();
         if vv <= 1e-30 {
-            return 0.0;
+            return (0.0, v);
         }
         let w = support(&-v);
         // v·w / |v| bounds the distance from below.
         lower = lower.max(v.dot(&w) / vv.sqrt());
         // |v| − lower ≤ (|v|² − v·w) / |v|: stop once that gap is within the tolerance.
         if lower > stop || vv - v.dot(&w) <= (EPS * vv).max(TOLERANCE * vv.sqrt()) {
-            return lower.max(0.0);
+            return (lower.max(0.0), v);
         }
         simplex.points[simplex.len] = w;
         simplex.len += 1;
         match closest_on_simplex(&simplex.points[..simplex.len]) {
-            None => return 0.0,
+            None => return (0.0, v),
             Some((p, reduced)) => {
                 // No progress: the bound is as good as it gets.
                 if p.norm_squared() >= vv * (1.0 - 1e-14) {
-                    return lower.max(0.0);
+                    return (lower.max(0.0), v);
                 }
                 v = p;
                 simplex = reduced;
             }
         }
     }
-    lower.max(0.0)
+    (lower.max(0.0), v)
 }
 
 /// The point of the simplex nearest the origin and the vertices of the feature it lies on;

@@ -158,6 +158,18 @@ pub(crate) const TOUCH: f64 = 1e-9;
 
 /// True when two convex shapes at world poses touch or overlap.
 pub(crate) fn convex_touch(a: &Convex, pose_a: &Pose, b: &Convex, pose_b: &Pose) -> bool {
+    convex_touch_along(a, pose_a, b, pose_b, &mut Vector3::zeros())
+}
+
+/// [`convex_touch`], trying the separating `axis` of an earlier answer first and leaving
+/// this answer's (see [`gjk::separated_along`]).
+pub(crate) fn convex_touch_along(
+    a: &Convex,
+    pose_a: &Pose,
+    b: &Convex,
+    pose_b: &Pose,
+    axis: &mut Vector3<f64>,
+) -> bool {
     let (a, b) = (
         gjk::Placed {
             shape: a,
@@ -168,7 +180,7 @@ pub(crate) fn convex_touch(a: &Convex, pose_a: &Pose, b: &Convex, pose_b: &Pose)
             pose: pose_b,
         },
     );
-    !gjk::separated(&a, &b, TOUCH)
+    !gjk::separated_along(&a, &b, TOUCH, axis)
 }
 
 /// True when two parry shapes at world poses touch or overlap.
