@@ -333,21 +333,21 @@ impl<'a> ExactChecker<'a> {
         let names = self.robot.links();
         let n_objects = self.objects.len();
         let (object_axes, pair_axes) = axes.split_at_mut(model.part_count() * n_objects);
-        // Distance from a sphere's centre to an object's box.
-        let out = |obj: &ExactObject, c: &Vector3<f64>| {
+        // Squared distance from a sphere's centre to an object's box.
+        let out2 = |obj: &ExactObject, c: &Vector3<f64>| {
             (obj.lo - c)
                 .sup(&(c - obj.hi))
                 .sup(&Vector3::zeros())
-                .norm()
+                .norm_squared()
         };
         for &li in links {
             // The objects the link's bounding sphere reaches (all past the 64th), which hold
             // every part's sphere (with a hair of slack).
             let near = model.link_bound(li).map_or(0, |(_, r)| {
-                let c = &self.bounds[li];
+                let (c, reach2) = (&self.bounds[li], (r + 1e-6) * (r + 1e-6));
                 let mut near = 0u64;
                 for (o, obj) in self.objects.iter().enumerate().take(64) {
-                    near |= u64::from(out(obj, c) <= r + 1e-6) << o;
+                    near |= u64::from(out2(obj, c) <= reach2) << o;
                 }
                 near
             });
@@ -359,8 +359,9 @@ impl<'a> ExactChecker<'a> {
                 let pose = || self.poses[li] * part.origin;
                 let c = (self.poses[li] * Point3::from(part.center)).coords;
                 let axes = &mut object_axes[pi * n_objects..][..n_objects];
+                let r2 = part.radius * part.radius;
                 for ((o, obj), axis) in self.objects.iter().enumerate().zip(axes) {
-                    if (o < 64 && near & (1 << o) == 0) || out(obj, &c) > part.radius {
+                    if (o < 64 && near & (1 << o) == 0) || out2(obj, &c) > r2 {
                         continue;
                     }
                     if convex_touch_along(&part.convex, &pose(), &obj.convex, &obj.pose, axis) {
@@ -380,7 +381,9 @@ impl<'a> ExactChecker<'a> {
         }
         for &(a, b) in pairs {
             let (a_at, b_at) = ((a, self.bounds[a]), (b, self.bounds[b]));
-            if placed_links_touch(model, &self.poses, a_at, b_at, Some(&mut *pair_axes)) {
+            if bounds_meet(model, a_at, b_at)
+                && parts_touch(model, &self.poses, a, b, Some(&mut *pair_axes))
+            {
                 return Some(Contact::SelfCollision {
                     link_a: names[a].name.clone(),
                     link_b: names[b].name.clone(),
@@ -441,30 +444,39 @@ pub fn links_touch(model: &ExactModel, poses: &[Pose], a: usize, b: usize) -> bo
             .map(|(c, _)| (poses[l] * Point3::from(c)).coords)
     };
     match (placed(a), placed(b)) {
-        (Some(ba), Some(bb)) => placed_links_touch(model, poses, (a, ba), (b, bb), None),
+        (Some(ba), Some(bb)) => {
+            bounds_meet(model, (a, ba), (b, bb)) && parts_touch(model, poses, a, b, None)
+        }
         _ => false,
     }
 }
 
-/// [`links_touch`] with the links' bounding-sphere centres already placed in the world, and
-/// optionally the part pairs' last separating directions (part-major, one row per part) to
-/// try first and update.
-fn placed_links_touch(
+/// True when the bounding spheres of links `a` and `b`, centred at `ba` and `bb` in the
+/// world, meet: most pairs are far apart. They hold every part's sphere, so (with a hair of
+/// slack for rounding) a pair they keep apart is one [`parts_touch`] would find apart too.
+#[inline]
+fn bounds_meet(
     model: &ExactModel,
-    poses: &[Pose],
     (a, ba): (usize, Vector3<f64>),
     (b, bb): (usize, Vector3<f64>),
-    mut axes: Option<&mut [Vector3<f64>]>,
 ) -> bool {
-    // The links' bounding spheres first: most pairs are far apart. They hold every part's
-    // sphere, so (with a hair of slack for rounding) this skips only pairs whose parts the
-    // test below would all skip.
     let (Some((_, ra)), Some((_, rb))) = (model.link_bound(a), model.link_bound(b)) else {
         return false;
     };
-    if (ba - bb).norm() > ra + rb + 1e-6 {
-        return false;
-    }
+    let reach = ra + rb + 1e-6;
+    (ba - bb).norm_squared() <= reach * reach
+}
+
+/// True when a part of link `a` touches a part of link `b` (at link poses `poses`), part
+/// pairs screened by their bounding spheres; `axes`, when given, holds the part pairs' last
+/// separating directions (part-major, one row per part) to try first and update.
+fn parts_touch(
+    model: &ExactModel,
+    poses: &[Pose],
+    a: usize,
+    b: usize,
+    mut axes: Option<&mut [Vector3<f64>]>,
+) -> bool {
     let parts = model.part_count();
     for (ia, pa) in model.part_numbers(a).zip(model.link_parts(a)) {
         let ca = poses[a] * Point3::from(pa.center);
