@@ -397,8 +397,10 @@ impl<'a> ExactChecker<'a> {
         let Some(map) = self.env.map() else {
             return false;
         };
+        // The clearance grid clears most parts in one read; the walk below finds the voxels
+        // the part's ball holds itself (asking `sphere_collides` first walked them twice).
         let r = part.radius;
-        if !map.sphere_collides(center, r) {
+        if map.clearance().is_some_and(|g| g.clear(center, r)) {
             return false;
         }
         let pose = &pose();
