@@ -1,13 +1,17 @@
 //! The exact checker: the robot's collision geometry itself (primitives as they are, meshes as
-//! their convex hulls or decompositions) against the environment and against itself, with
-//! parry3d's GJK intersection tests. It decides what must not depend on the sphere model's
-//! conservatism: start and goal validity (naming the contact), the final validation of every
-//! returned path, and the planner's checks near terminal states that only the spheres touch.
+//! their convex hulls or decompositions) against the environment and against itself, with our
+//! `f64` GJK ([`super::gjk`]) over the shapes. It decides what must not depend on the sphere
+//! model's conservatism: start and goal validity (naming the contact), the final validation of
+//! every returned path, and the planner's checks near terminal states that only the spheres
+//! touch.
 //!
-//! Per configuration: forward kinematics, then for each moving link part a bounding-sphere test
-//! against each object's bounding sphere before GJK; occupied map voxels are tested as cubes,
-//! only where the part's bounding sphere meets the map. Pairs of links that never move
-//! relative to each other are checked once, at construction.
+//! Per configuration: forward kinematics, then each moving link's bounding sphere picks the
+//! objects it reaches, and each of its parts' bounding spheres those of them GJK is asked
+//! about; occupied map voxels are tested as cubes, only where the clearance grid cannot clear
+//! the part's ball. Then the moving link pairs, screened by their links' bounding spheres, then
+//! by their parts'. Every GJK test first tries the direction that separated the same two shapes
+//! last time (a part–object or part–part pair), which along an edge usually settles it. Pairs
+//! of links that never move relative to each other are checked once, at construction.
 
 use super::checker::Contact;
 use super::gjk::Convex;
