@@ -238,7 +238,7 @@ impl<'a> ExactChecker<'a> {
             })
             .collect::<Vec<_>>();
         let parts = robot.exact_model().part_count();
-        ExactChecker {
+        let mut sut = ExactChecker {
             robot,
             env,
             poses: rest.poses.clone(),
@@ -248,7 +248,9 @@ impl<'a> ExactChecker<'a> {
             rest,
             static_contact: None,
             checks: 0,
-        }
+        };
+        sut.place_bounds(0..rest.poses.len());
+        sut
     }
 
     /// The robot checked.
@@ -282,6 +284,8 @@ impl<'a> ExactChecker<'a> {
         }
         self.robot.forward_kinematics(q, &mut self.poses);
         let rest = self.rest;
+        // The links that never move keep the bounds placed at rest.
+        self.place_bounds(rest.moving_links.iter().copied());
         self.first_contact(&rest.moving_links, &rest.moving_pairs)
     }
 
@@ -310,15 +314,19 @@ impl<'a> ExactChecker<'a> {
         None
     }
 
-    /// The first contact of `links` with the world, else of `pairs` with each other, at the
-    /// link poses held.
-    fn first_contact(&mut self, links: &[usize], pairs: &[(usize, usize)]) -> Option<Contact> {
+    /// Places the bounding spheres of `links` (those with geometry) at the link poses held.
+    fn place_bounds(&mut self, links: impl IntoIterator<Item = usize>) {
         let model = self.robot.exact_model();
-        for (l, (pose, at)) in self.poses.iter().zip(&mut self.bounds).enumerate() {
+        for l in links {
             if let Some((c, _)) = model.link_bound(l) {
-                *at = (pose * Point3::from(c)).coords;
+                self.bounds[l] = (self.poses[l] * Point3::from(c)).coords;
             }
         }
+    }
+
+    /// The first contact of `links` with the world, else of `pairs` with each other, at the
+    /// link poses and bounds held.
+    fn first_contact(&mut self, links: &[usize], pairs: &[(usize, usize)]) -> Option<Contact> {
         let mut axes = std::mem::take(&mut self.axes);
         let found = self.contact_among(links, pairs, &mut axes);
         self.axes = axes;
@@ -418,10 +426,7 @@ impl<'a> ExactChecker<'a> {
         let reach2 = (r + 1e-6) * (r + 1e-6);
         map.any_occupied_in(lo, hi, |v| {
             (0..3).all(|k| v[k] >= lo[k] && v[k] <= hi[k])
-                && (0..3)
-                    .map(|k| ((center[k] - v[k]).abs() - half).max(0.0).powi(2))
-                    .sum::<f64>()
-                    <= reach2
+                && map.voxel_gap2(center, v) <= reach2
                 && convex_touch(
                     &part.convex,
                     pose,

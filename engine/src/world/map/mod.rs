@@ -435,15 +435,19 @@ impl OccupancyMap {
 
     /// [`OccupancyMap::sphere_collides`] without the grid: the voxels near the ball, one by one.
     pub fn sphere_touches_voxels(&self, c: [f64; 3], r: f64) -> bool {
-        let half = self.params.resolution / 2.0;
         self.any_occupied_in(
             [c[0] - r, c[1] - r, c[2] - r],
             [c[0] + r, c[1] + r, c[2] + r],
-            |v| {
-                let d = [0, 1, 2].map(|a| ((c[a] - v[a]).abs() - half).max(0.0));
-                d[0] * d[0] + d[1] * d[1] + d[2] * d[2] < r * r
-            },
+            |v| self.voxel_gap2(c, v) < r * r,
         )
+    }
+
+    /// Squared distance from `p` to the cube of the voxel centred at `v` (0 inside it).
+    #[inline]
+    pub fn voxel_gap2(&self, p: [f64; 3], v: [f64; 3]) -> f64 {
+        let half = self.params.resolution / 2.0;
+        let d = [0, 1, 2].map(|a| ((p[a] - v[a]).abs() - half).max(0.0));
+        d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
     }
 
     /// Calls `f` with the centre of each occupied voxel in the 4×4×4 blocks overlapping the box
