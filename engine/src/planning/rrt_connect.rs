@@ -89,17 +89,18 @@ struct Search<'c, 'a, 's> {
     scratch: Vec<f64>,
     stats: &'s mut PlanStats,
     phases: Phases,
-    /// True on the iterations whose sampling and neighbour queries are timed (see
+    /// True on the iterations whose sampling, neighbour queries and checks are timed (see
     /// [`SPLIT_EVERY`]).
     timed: bool,
 }
 
-/// Sampling and neighbour queries are timed on one iteration in this many and scaled up: they
-/// take a few hundred nanoseconds, and reading the clock around each would add a tenth.
+/// Sampling, neighbour queries and checks are timed on one iteration in this many and scaled
+/// up: they take a few hundred nanoseconds, and reading the clock around each would add a
+/// tenth.
 const SPLIT_EVERY: u64 = 8;
 
-/// Search time by phase, in clock ticks (see [`ticks`]); sampling and neighbour queries are
-/// estimated from every [`SPLIT_EVERY`]th iteration.
+/// Search time by phase, in clock ticks (see [`ticks`]), estimated from every
+/// [`SPLIT_EVERY`]th iteration.
 #[derive(Default)]
 struct Phases {
     start: u64,
@@ -206,9 +207,14 @@ impl Search<'_, '_, '_> {
             self.robot
                 .interpolate(near_q, target, self.range / d, &mut self.scratch);
         }
-        let t = ticks();
-        let ok = self.checker.reach_valid(tree.node(near), &self.scratch);
-        self.phases.check += ticks().wrapping_sub(t);
+        let ok = if self.timed {
+            let t = ticks();
+            let ok = self.checker.reach_valid(tree.node(near), &self.scratch);
+            self.phases.check += SPLIT_EVERY * ticks().wrapping_sub(t);
+            ok
+        } else {
+            self.checker.reach_valid(tree.node(near), &self.scratch)
+        };
         if !ok {
             return Extend::Trapped;
         }
