@@ -134,30 +134,45 @@ impl NearestIndex {
 
     /// The number and squared distance of the point nearest to `target`; `None` when empty.
     pub fn nearest(&mut self, target: &[f64]) -> Option<(u32, f64)> {
+        // The common arm sizes get their number of joints known: the query's set-up and the
+        // answer's exact distance unrolled, without bounds checks (they had cost more than
+        // the distance kernel on small trees).
+        match self.dof {
+            6 => self.nearest_of::<6>(target),
+            7 => self.nearest_of::<7>(target),
+            8 => self.nearest_of::<8>(target),
+            _ => self.nearest_of::<0>(target),
+        }
+    }
+
+    /// [`NearestIndex::nearest`] over `DOF` joints (all of them when `DOF` is 0).
+    #[inline(always)]
+    fn nearest_of<const DOF: usize>(&mut self, target: &[f64]) -> Option<(u32, f64)> {
         if self.children.is_empty() {
             return None;
         }
-        self.set_query(target);
+        self.set_query::<DOF>(target);
         let (leaf, k) = match self.children[0] {
             // A tree of one bucket (most trees, most of the time): no walk.
             [NONE, leaf] => (leaf as usize, self.leaf_nearest(leaf as usize).1),
             _ => self.walk(),
         };
         // The lanes chose; the exact coordinates give the distance.
-        Some((self.ids[leaf * SLOTS + k], self.exact_dist2(leaf, k)))
+        Some((self.ids[leaf * SLOTS + k], self.exact_dist2::<DOF>(leaf, k)))
     }
 
     /// Holds `p` as the query: wrapped, and in `f32`. Values already inside their range
     /// (every joint of a sample within the limits) are copied in one pass.
-    #[inline]
-    fn set_query(&mut self, p: &[f64]) {
-        let dof = self.dof;
+    #[inline(always)]
+    fn set_query<const DOF: usize>(&mut self, p: &[f64]) {
+        let dof = if DOF == 0 { self.dof } else { DOF };
         let (p, lo, hi) = (&p[..dof], &self.inside_lo[..dof], &self.inside_hi[..dof]);
         let (q, q32) = (&mut self.target[..dof], &mut self.target32[..dof]);
         let mut outside = false;
         for j in 0..dof {
             let v = p[j];
-            outside |= !(v >= lo[j] && v < hi[j]);
+            // Not short-circuited: one pass of comparisons (a NaN counts as outside).
+            outside |= !(v >= lo[j]) | !(v < hi[j]);
             q[j] = v;
             q32[j] = v as f32;
         }
@@ -269,17 +284,21 @@ impl NearestIndex {
         self.len[leaf] += 1;
     }
 
-    /// Squared distance from the query to point `k` of `leaf`, in `f64`. Both are wrapped, so
-    /// on a continuous joint the way around is |d| or 2π − |d| (`period` is infinite on the
-    /// others): what [`wrap_angle`] of the difference gives, squared.
-    fn exact_dist2(&self, leaf: usize, k: usize) -> f64 {
-        let dof = self.dof;
+    /// Squared distance from the query to point `k` of `leaf`, in `f64`, over `DOF` joints
+    /// (all when 0). Both are wrapped, so on a continuous joint the way around is |d| or
+    /// 2π − |d| (`period` is infinite on the others): what [`wrap_angle`] of the difference
+    /// gives, squared.
+    #[inline(always)]
+    fn exact_dist2<const DOF: usize>(&self, leaf: usize, k: usize) -> f64 {
+        let dof = if DOF == 0 { self.dof } else { DOF };
+        let k = k.min(SLOTS - 1);
         let point = &self.coords[leaf * SLOTS * dof..][..SLOTS * dof];
         let (q, period) = (&self.target[..dof], &self.period[..dof]);
         let mut d2 = 0.0;
         for j in 0..dof {
             let d = (q[j] - point[j * SLOTS + k]).abs();
-            let d = d.min(period[j] - d);
+            let around = period[j] - d;
+            let d = if around < d { around } else { d };
             d2 += d * d;
         }
         d2
@@ -497,11 +516,23 @@ unsafe fn leaf_kernel_avx2<const DOF: usize>(
         let this = _mm256_set1_epi32(block as i32);
         block_of = _mm256_blendv_epi8(block_of, this, _mm256_castps_si256(closer));
     }
-    let mut values = [0.0f32; 8];
-    let mut block_numbers = [0u32; 8];
-    _mm256_storeu_ps(values.as_mut_ptr(), least);
-    _mm256_storeu_si256(block_numbers.as_mut_ptr().cast(), block_of);
-    first_least(&values, &block_numbers)
+    // [`first_least`] in registers: the least value in every lane, then the least slot
+    // number among the lanes holding it.
+    let m = _mm256_min_ps(least, _mm256_permute2f128_ps::<1>(least, least));
+    let m = _mm256_min_ps(m, _mm256_shuffle_ps::<0b01_00_11_10>(m, m));
+    let m = _mm256_min_ps(m, _mm256_shuffle_ps::<0b10_11_00_01>(m, m));
+    let at_least = _mm256_castps_si256(_mm256_cmp_ps::<_CMP_EQ_OQ>(least, m));
+    let lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+    let slot = _mm256_add_epi32(_mm256_slli_epi32::<3>(block_of), lane);
+    let slot = _mm256_blendv_epi8(_mm256_set1_epi32(-1), slot, at_least);
+    let slot = _mm256_min_epu32(slot, _mm256_permute2x128_si256::<1>(slot, slot));
+    let slot = _mm256_min_epu32(slot, _mm256_shuffle_epi32::<0b01_00_11_10>(slot));
+    let slot = _mm256_min_epu32(slot, _mm256_shuffle_epi32::<0b10_11_00_01>(slot));
+    let slot = _mm256_cvtsi256_si32(slot) as u32;
+    (
+        _mm256_cvtss_f32(m),
+        if slot == u32::MAX { 0 } else { slot as usize },
+    )
 }
 
 #[cfg(test)]
