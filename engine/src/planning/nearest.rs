@@ -172,7 +172,7 @@ impl NearestIndex {
         for j in 0..dof {
             let v = p[j];
             // Not short-circuited: one pass of comparisons (a NaN counts as outside).
-            outside |= !(v >= lo[j]) | !(v < hi[j]);
+            outside |= !((v >= lo[j]) & (v < hi[j]));
             q[j] = v;
             q32[j] = v as f32;
         }
