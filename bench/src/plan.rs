@@ -18,7 +18,9 @@
 //! simplify_ms=<median> validate_ms=<median> total_median_ms=<median> median_iterations=
 //! median_nodes=` and the time split; a failure counts as the time limit in the mean, as in
 //! the paper. `total_median_ms` is over the solved problems: planning, simplification and
-//! validation, what a caller waits for.
+//! validation, what a caller waits for. `--per-problem` also prints, as each problem ends,
+//! `PROBLEM set= index= solved=1 ms= total_ms= iterations= nodes= exact_fallbacks=` (or
+//! `solved=0 outcome=start_in_collision|goal_in_collision|timeout|failed`).
 
 use ember_engine::planning::PlanError;
 use ember_engine::planning::{self, PlanRequest, PlannerParams, UniformSampler};
@@ -63,6 +65,9 @@ pub struct Args {
     /// against the objects with the cloud's map (map on, as emberd with `use_map`).
     #[arg(long)]
     map_compare: bool,
+    /// Also print one `PROBLEM` line per problem (time, iterations, nodes, exact fallbacks).
+    #[arg(long)]
+    per_problem: bool,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -151,7 +156,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             if args.map_compare {
                 objects_only.plan(robot, &p.scene.environment()?, &req, args.time_limit);
             }
-            tally.plan(robot, &env, &req, args.time_limit);
+            let outcome = tally.plan(robot, &env, &req, args.time_limit);
+            if args.per_problem {
+                println!("PROBLEM set={} index={} {outcome}", set.name, p.index);
+            }
         }
         let cloud_keys = if args.clouds.is_some() {
             let (map_median, _, _) = summary(&mut map_ms);
@@ -208,29 +216,51 @@ struct Tally {
 }
 
 impl Tally {
-    /// Plans one request and counts the outcome (a failure as the time limit).
-    fn plan(&mut self, robot: &Robot, env: &Environment, req: &PlanRequest, time_limit: f64) {
+    /// Plans one request and counts the outcome (a failure as the time limit); returns the
+    /// outcome as `--per-problem` prints it.
+    fn plan(
+        &mut self,
+        robot: &Robot,
+        env: &Environment,
+        req: &PlanRequest,
+        time_limit: f64,
+    ) -> String {
         let t = Instant::now();
         match planning::plan(robot, env, req, &mut UniformSampler) {
             Ok(res) => {
                 let total = t.elapsed().as_secs_f64();
+                let ms = (total - res.stats.simplify_s - res.stats.validate_s) * 1e3;
                 self.solved += 1;
-                self.times
-                    .push((total - res.stats.simplify_s - res.stats.validate_s) * 1e3);
+                self.times.push(ms);
                 self.simplify.push(res.stats.simplify_s * 1e3);
                 self.validate.push(res.stats.validate_s * 1e3);
                 self.total.push(total * 1e3);
                 self.split.add(&res.stats);
                 self.iterations.push(res.stats.iterations as f64);
                 self.nodes.push(res.stats.tree_nodes as f64);
+                format!(
+                    "solved=1 ms={ms:.3} total_ms={:.3} iterations={} nodes={} exact_fallbacks={}",
+                    total * 1e3,
+                    res.stats.iterations,
+                    res.stats.tree_nodes,
+                    res.stats.exact_fallbacks
+                )
             }
             Err(e) => {
-                match e {
-                    PlanError::StartInCollision(_) => self.start_refused += 1,
-                    PlanError::GoalInCollision(_) => self.goal_refused += 1,
-                    _ => {}
-                }
-                self.times.push(time_limit * 1e3)
+                let outcome = match e {
+                    PlanError::StartInCollision(_) => {
+                        self.start_refused += 1;
+                        "start_in_collision"
+                    }
+                    PlanError::GoalInCollision(_) => {
+                        self.goal_refused += 1;
+                        "goal_in_collision"
+                    }
+                    PlanError::Timeout { .. } => "timeout",
+                    _ => "failed",
+                };
+                self.times.push(time_limit * 1e3);
+                format!("solved=0 outcome={outcome}")
             }
         }
     }

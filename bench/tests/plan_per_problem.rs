@@ -1,0 +1,75 @@
+//! `ember-bench plan --per-problem` run as a user runs it, on a folder of two hand-written
+//! MoveIt problems (the fixtures' table scene with a joint goal and with a pose goal): one
+//! `PROBLEM` line per problem, in the folder's numbering, and the set's `RESULT plan` line
+//! agreeing with them.
+
+use std::process::Command;
+
+#[test]
+fn per_problem_lines_name_each_problem_and_agree_with_the_result_line() {
+    let fixtures = concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/fixtures/moveit");
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("plan_per_problem");
+    std::fs::create_dir_all(&dir).expect("folder");
+    for (n, request) in [(3, "request_joint.yaml"), (8, "request_pose.yaml")] {
+        std::fs::copy(
+            format!("{fixtures}/scene.yaml"),
+            dir.join(format!("scene{n:04}.yaml")),
+        )
+        .expect("scene");
+        std::fs::copy(
+            format!("{fixtures}/{request}"),
+            dir.join(format!("request{n:04}.yaml")),
+        )
+        .expect("request");
+    }
+    let out = Command::new(env!("CARGO_BIN_EXE_ember-bench"))
+        .args(["plan", "--per-problem", "--time-limit", "5", "--problems"])
+        .arg(&dir)
+        .output()
+        .expect("ember-bench runs");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let problems: Vec<&str> = stdout
+        .lines()
+        .filter(|l| l.starts_with("PROBLEM "))
+        .collect();
+    assert_eq!(problems.len(), 2, "{stdout}");
+    let key = |line: &str, k: &str| -> String {
+        line.split_whitespace()
+            .find_map(|kv| kv.strip_prefix(&format!("{k}=")).map(str::to_string))
+            .unwrap_or_else(|| panic!("no {k} in {line}"))
+    };
+    assert_eq!(key(problems[0], "index"), "3");
+    assert_eq!(key(problems[1], "index"), "8");
+    let solved = problems
+        .iter()
+        .filter(|l| key(l, "solved") == "1")
+        .inspect(|l| {
+            let ms: f64 = key(l, "ms").parse().expect("ms");
+            let total: f64 = key(l, "total_ms").parse().expect("total_ms");
+            assert!(ms > 0.0 && total >= ms, "{l}");
+            key(l, "iterations").parse::<u64>().expect("iterations");
+            key(l, "exact_fallbacks")
+                .parse::<u64>()
+                .expect("exact_fallbacks");
+        })
+        .count();
+    let result = stdout
+        .lines()
+        .find(|l| l.starts_with("RESULT plan "))
+        .expect("a RESULT plan line");
+    assert_eq!(key(result, "n"), "2", "{result}");
+    assert_eq!(key(result, "solved"), solved.to_string(), "{result}");
+    assert_eq!(solved, 2, "{stdout}");
+    assert!(
+        stdout
+            .lines()
+            .last()
+            .is_some_and(|l| l.starts_with("RESULT ")),
+        "the RESULT lines end the output:\n{stdout}"
+    );
+}
