@@ -66,6 +66,16 @@ pub fn wrap_angle(a: f64) -> f64 {
     }
 }
 
+/// `b - a`, the shortest way round on a continuous joint.
+#[inline(always)]
+fn delta(continuous: bool, a: f64, b: f64) -> f64 {
+    if continuous {
+        wrap_angle(b - a)
+    } else {
+        b - a
+    }
+}
+
 /// [`wrap_angle`] of an angle more than a turn outside `[-π, π)` (or not finite).
 #[cold]
 #[inline(never)]
@@ -129,11 +139,7 @@ impl Robot {
     /// Per-joint difference `b - a`, the shortest way round for continuous joints.
     #[inline]
     pub fn joint_delta(&self, i: usize, a: f64, b: f64) -> f64 {
-        if self.variables[i].continuous {
-            wrap_angle(b - a)
-        } else {
-            b - a
-        }
+        delta(self.variables[i].continuous, a, b)
     }
 
     /// Distance between two configurations (Euclidean over joint deltas).
@@ -148,9 +154,12 @@ impl Robot {
     /// ```
     #[inline]
     pub fn distance(&self, a: &[f64], b: &[f64]) -> f64 {
+        // Sliced once (a short `b` panics, as indexing did): no bounds check per joint.
+        let n = a.len();
+        let (b, vars) = (&b[..n], &self.variables[..n]);
         let mut s = 0.0;
-        for i in 0..a.len() {
-            let d = self.joint_delta(i, a[i], b[i]);
+        for i in 0..n {
+            let d = delta(vars[i].continuous, a[i], b[i]);
             s += d * d;
         }
         s.sqrt()
@@ -167,13 +176,12 @@ impl Robot {
     /// Writes the configuration a fraction `t` of the way from `a` to `b` into `out`.
     #[inline]
     pub fn interpolate(&self, a: &[f64], b: &[f64], t: f64, out: &mut [f64]) {
-        for i in 0..a.len() {
-            let v = a[i] + t * self.joint_delta(i, a[i], b[i]);
-            out[i] = if self.variables[i].continuous {
-                wrap_angle(v)
-            } else {
-                v
-            };
+        let n = a.len();
+        let (b, out, vars) = (&b[..n], &mut out[..n], &self.variables[..n]);
+        for i in 0..n {
+            let continuous = vars[i].continuous;
+            let v = a[i] + t * delta(continuous, a[i], b[i]);
+            out[i] = if continuous { wrap_angle(v) } else { v };
         }
     }
 
