@@ -546,7 +546,7 @@ impl BatchChecker {
     #[inline(always)]
     fn place_bound(&mut self, l: usize) {
         let (c, _) = self.bound[l].unwrap_or_default();
-        self.bounds[l] = self.poses[self.frame[l]].apply_const(c);
+        self.bounds[l] = self.poses[self.frame[l]].apply_const_on(c, self.avx2);
     }
 
     #[inline(always)]
@@ -601,7 +601,8 @@ impl BatchChecker {
     fn place_cluster(&mut self, l: usize, ci: usize) {
         if self.cluster_stamp[ci] < self.epoch {
             self.cluster_stamp[ci] = self.epoch;
-            self.cluster_at[ci] = self.poses[self.frame[l]].apply_const(self.cluster[ci].0);
+            self.cluster_at[ci] =
+                self.poses[self.frame[l]].apply_const_on(self.cluster[ci].0, self.avx2);
         }
     }
 
@@ -611,7 +612,7 @@ impl BatchChecker {
             self.sphere_stamp[ci] = self.epoch;
             let pose = &self.poses[self.frame[l]];
             for s in self.cluster[ci].2.clone() {
-                self.sphere_at[s] = pose.apply_const(self.sphere[s].0);
+                self.sphere_at[s] = pose.apply_const_on(self.sphere[s].0, self.avx2);
             }
         }
     }
@@ -650,7 +651,7 @@ impl BatchChecker {
             // Written where the sphere's placement goes (correct for this batch; its stamp
             // is left alone): computed into a local, LLVM interleaved the three rows with
             // the shape test and took twice the instructions.
-            self.sphere_at[s] = self.poses[self.frame[l]].apply_const(c);
+            self.sphere_at[s] = self.poses[self.frame[l]].apply_const_on(c, self.avx2);
             let p = self.sphere_at[s];
             let hit = match j {
                 Touched::Object(j) => penetrates(&self.objects[j], p, r),
@@ -688,6 +689,7 @@ impl BatchChecker {
                 // Spheres not yet placed in this batch are placed one by one as they are
                 // tested: most batches end at a link's first spheres in contact.
                 let placed = self.sphere_stamp[ci] >= self.epoch;
+                let avx2 = self.avx2;
                 let pose = &self.poses[self.frame[l]];
                 let range = self.cluster[ci].2.clone();
                 for (s, (at, &(c, r))) in self.sphere_at[range.clone()]
@@ -697,7 +699,7 @@ impl BatchChecker {
                     .map(|(k, x)| (range.start + k, x))
                 {
                     if !placed {
-                        *at = pose.apply_const(c);
+                        *at = pose.apply_const_on(c, avx2);
                     }
                     let p = *at;
                     let hit = penetrated(&self.objects, cluster_mask, p, r);
