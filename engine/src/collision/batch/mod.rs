@@ -530,13 +530,13 @@ impl BatchChecker {
 
     #[inline(always)]
     fn remember(&mut self, contact: (usize, usize, Touched)) {
-        self.to_front(RECENT - 1, Some(contact));
+        self.bring_forward(RECENT - 1, Some(contact));
     }
 
     /// Moves the remembered contacts before `k` one place back and puts `contact` first.
     /// (A loop over four entries: `rotate_right` was a call costing as much as a test.)
     #[inline(always)]
-    fn to_front(&mut self, k: usize, contact: Option<(usize, usize, Touched)>) {
+    fn bring_forward(&mut self, k: usize, contact: Option<(usize, usize, Touched)>) {
         for i in (1..=k.min(RECENT - 1)).rev() {
             self.recent[i] = self.recent[i - 1];
         }
@@ -659,7 +659,7 @@ impl BatchChecker {
             };
             if hit {
                 self.remembered += 1;
-                self.to_front(k, self.recent[k]);
+                self.bring_forward(k, self.recent[k]);
                 return true;
             }
         }
