@@ -3,7 +3,7 @@
 //! `PROBLEM` line per problem, in the folder's numbering, and the set's `RESULT plan` line
 //! agreeing with them.
 
-use std::process::Command;
+mod common;
 
 #[test]
 fn per_problem_lines_name_each_problem_and_agree_with_the_result_line() {
@@ -22,17 +22,15 @@ fn per_problem_lines_name_each_problem_and_agree_with_the_result_line() {
         )
         .expect("request");
     }
-    let out = Command::new(env!("CARGO_BIN_EXE_ember-bench"))
-        .args(["plan", "--per-problem", "--time-limit", "5", "--problems"])
-        .arg(&dir)
-        .output()
-        .expect("ember-bench runs");
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{stdout}\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let dir_arg = dir.as_os_str().to_owned();
+    let stdout = common::ember_bench([
+        "plan".as_ref(),
+        "--per-problem".as_ref(),
+        "--time-limit".as_ref(),
+        "5".as_ref(),
+        "--problems".as_ref(),
+        dir_arg.as_os_str(),
+    ]);
     let problems: Vec<&str> = stdout
         .lines()
         .filter(|l| l.starts_with("PROBLEM "))

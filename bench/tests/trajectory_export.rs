@@ -4,22 +4,17 @@
 //! on its own: it starts at rest and can stop at its end, keeps its velocity limits, and its samples cover
 //! its duration.
 
-use std::process::Command;
+mod common;
 
 #[test]
 fn exported_trajectories_start_and_end_at_rest_within_their_velocity_limits() {
     let file = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("ci-trajectories.json");
-    let out = Command::new(env!("CARGO_BIN_EXE_ember-bench"))
-        .args(["trajectory", "--no-peer", "--export"])
-        .arg(&file)
-        .output()
-        .expect("ember-bench runs");
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{stdout}\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let stdout = common::ember_bench([
+        "trajectory".as_ref(),
+        "--no-peer".as_ref(),
+        "--export".as_ref(),
+        file.as_os_str(),
+    ]);
     assert!(stdout.contains("RESULT trajectory "), "{stdout}");
     let doc: serde_json::Value =
         serde_json::from_slice(&std::fs::read(&file).expect("exported")).expect("JSON");
