@@ -291,6 +291,7 @@ impl NearestIndex {
     #[inline(always)]
     fn exact_dist2<const DOF: usize>(&self, leaf: usize, k: usize) -> f64 {
         let dof = if DOF == 0 { self.dof } else { DOF };
+        // `k` is a slot (below `SLOTS`); said so, the loop's reads need no bounds checks.
         let k = k.min(SLOTS - 1);
         let point = &self.coords[leaf * SLOTS * dof..][..SLOTS * dof];
         let (q, period) = (&self.target[..dof], &self.period[..dof]);
