@@ -122,6 +122,19 @@ impl Phases {
     }
 }
 
+/// Runs `f`; when `on` (an iteration of the split's sample), adds its ticks, scaled by
+/// [`SPLIT_EVERY`], to `phase`.
+#[inline(always)]
+fn timed<T>(on: bool, phase: &mut u64, f: impl FnOnce() -> T) -> T {
+    if !on {
+        return f();
+    }
+    let t = ticks();
+    let out = f();
+    *phase += SPLIT_EVERY * ticks().wrapping_sub(t);
+    out
+}
+
 /// A cheap monotonic tick count for the time split: the CPU's time-stamp counter on x86-64
 /// (a few nanoseconds to read, against ~25 ns for the system clock, which the split's four
 /// readings per iteration made a tenth of the search), else nanoseconds of the system clock.
@@ -166,13 +179,9 @@ impl Default for DynamicDomain {
 
 impl Search<'_, '_, '_> {
     fn nearest(&mut self, tree: &mut Tree, target: &[f64]) -> (usize, f64) {
-        if !self.timed {
-            return tree.nearest(target);
-        }
-        let t = ticks();
-        let near = tree.nearest(target);
-        self.phases.neighbour += SPLIT_EVERY * ticks().wrapping_sub(t);
-        near
+        timed(self.timed, &mut self.phases.neighbour, || {
+            tree.nearest(target)
+        })
     }
 
     /// One step from the nearest node towards a sample. With a dynamic domain, samples
@@ -207,14 +216,10 @@ impl Search<'_, '_, '_> {
             self.robot
                 .interpolate(near_q, target, self.range / d, &mut self.scratch);
         }
-        let ok = if self.timed {
-            let t = ticks();
-            let ok = self.checker.reach_valid(tree.node(near), &self.scratch);
-            self.phases.check += SPLIT_EVERY * ticks().wrapping_sub(t);
-            ok
-        } else {
-            self.checker.reach_valid(tree.node(near), &self.scratch)
-        };
+        let (checker, scratch) = (&mut *self.checker, &self.scratch);
+        let ok = timed(self.timed, &mut self.phases.check, || {
+            checker.reach_valid(tree.node(near), scratch)
+        });
         if !ok {
             return Extend::Trapped;
         }
@@ -307,13 +312,9 @@ pub(crate) fn search(
         }
         iterations += 1;
         search.timed = iterations.is_multiple_of(SPLIT_EVERY);
-        if search.timed {
-            let t = ticks();
-            sampler.sample(robot, rng, &mut sample);
-            search.phases.sample += SPLIT_EVERY * ticks().wrapping_sub(t);
-        } else {
-            sampler.sample(robot, rng, &mut sample);
-        }
+        timed(search.timed, &mut search.phases.sample, || {
+            sampler.sample(robot, rng, &mut sample)
+        });
 
         // Grow the smaller tree (balanced bidirectional search).
         let from_start = start_tree.len() <= goal_tree.len();
