@@ -466,7 +466,13 @@ impl<'a> super::ConfigCheck<'a> for SphereChecker<'a> {
 /// step finer one way by rounding), so every check of an edge samples the same states.
 #[inline]
 pub fn motion_steps(robot: &Robot, a: &[f64], b: &[f64], resolution: f64) -> usize {
-    (robot.distance(a, b) / resolution - 1e-9).ceil().max(0.0) as usize
+    steps_over(robot.distance(a, b), resolution)
+}
+
+/// [`motion_steps`] of a motion `distance` long.
+#[inline]
+pub fn steps_over(distance: f64, resolution: f64) -> usize {
+    (distance / resolution - 1e-9).ceil().max(0.0) as usize
 }
 
 /// Checks the states strictly between `a` and `b` at `resolution` with `valid`, coarse to
@@ -490,15 +496,47 @@ pub fn bisect_motion(
 
 /// The interior steps `1..n` of a motion cut into `n` segments, coarse to fine: the middle,
 /// then the quarters, and so on (empty when `n < 2`).
-pub fn bisection_order(n: usize) -> impl Iterator<Item = usize> {
+#[inline]
+pub fn bisection_order(n: usize) -> Bisection {
     let top = match n {
         0 | 1 => 0,
         _ => 1usize << (usize::BITS - 1 - (n - 1).leading_zeros()),
     };
-    std::iter::successors((top > 0).then_some(top), |&step| {
-        (step > 1).then_some(step / 2)
-    })
-    .flat_map(move |step| (step..n).step_by(2 * step))
+    Bisection {
+        n,
+        step: top,
+        k: top,
+    }
+}
+
+/// The iterator of [`bisection_order`]: the steps `step, 3 step, 5 step, …` below `n`, for
+/// `step` halving down to one. (A hand-written state machine: the adapter chain it replaces
+/// cost a few hundred instructions per motion, as much as the motion's set-up.)
+#[derive(Debug, Clone)]
+pub struct Bisection {
+    n: usize,
+    /// The current stride's first step, zero when done.
+    step: usize,
+    /// The next step to give at this stride.
+    k: usize,
+}
+
+impl Iterator for Bisection {
+    type Item = usize;
+
+    #[inline]
+    fn next(&mut self) -> Option<usize> {
+        while self.step > 0 {
+            if self.k < self.n {
+                let k = self.k;
+                self.k += 2 * self.step;
+                return Some(k);
+            }
+            self.step /= 2;
+            self.k = self.step;
+        }
+        None
+    }
 }
 
 /// Stamp of positions that never change (links that do not move).

@@ -154,12 +154,27 @@ impl Robot {
     /// ```
     #[inline]
     pub fn distance(&self, a: &[f64], b: &[f64]) -> f64 {
+        self.fold_deltas(a, b, |_, _| {})
+    }
+
+    /// Writes the per-joint differences from `a` to `b` ([`Robot::joint_delta`]) into `out`
+    /// and returns their [`Robot::distance`], in one pass.
+    #[inline]
+    pub fn deltas(&self, a: &[f64], b: &[f64], out: &mut [f64]) -> f64 {
+        let out = &mut out[..a.len()];
+        self.fold_deltas(a, b, |i, d| out[i] = d)
+    }
+
+    /// The distance from `a` to `b`, each joint's difference handed to `each` on the way.
+    #[inline(always)]
+    fn fold_deltas(&self, a: &[f64], b: &[f64], mut each: impl FnMut(usize, f64)) -> f64 {
         // Sliced once (a short `b` panics, as indexing did): no bounds check per joint.
         let n = a.len();
         let (b, vars) = (&b[..n], &self.variables[..n]);
         let mut s = 0.0;
         for i in 0..n {
             let d = delta(vars[i].continuous, a[i], b[i]);
+            each(i, d);
             s += d * d;
         }
         s.sqrt()

@@ -25,7 +25,7 @@
 
 pub mod lanes;
 
-use crate::collision::checker::{bisection_order, motion_steps};
+use crate::collision::checker::{bisection_order, steps_over};
 use crate::collision::Shape;
 use crate::robot::fk::JointFrames;
 use crate::robot::{Motion, Robot};
@@ -414,16 +414,13 @@ impl BatchChecker {
         with_end: bool,
         mut decide: impl FnMut(&[usize; LANES], usize) -> bool,
     ) -> bool {
-        let n = motion_steps(robot, a, b, resolution).max(1);
+        // The states are a + (k / n) · delta; continuous joints need no wrapping here (the
+        // kinematics only takes their sine and cosine).
+        let n = steps_over(robot.deltas(a, b, &mut self.delta), resolution).max(1);
         if n < 2 && !with_end {
             return true;
         }
-        // The states are a + (k / n) · delta; continuous joints need no wrapping here (the
-        // kinematics only takes their sine and cosine).
         self.start.copy_from_slice(a);
-        for (j, d) in self.delta.iter_mut().enumerate() {
-            *d = robot.joint_delta(j, a[j], b[j]);
-        }
         let mut batch = [0usize; LANES];
         let mut filled = 0;
         if with_end {
@@ -458,13 +455,12 @@ impl BatchChecker {
     /// something.
     fn states_may_collide(&mut self, n: usize, ks: &[usize; LANES]) -> bool {
         self.states += LANES as u64;
-        let t = std::array::from_fn(|lane| ks[lane] as f64 / n as f64);
-        self.lanes_may_collide(Some(&t))
+        self.lanes_may_collide(Some((ks, n)))
     }
 
     /// True when any of the eight configurations in `self.lanes` (first written from the
-    /// edge at fractions `t`, if given) may touch something.
-    fn lanes_may_collide(&mut self, t: Option<&[f64; LANES]>) -> bool {
+    /// edge's states `ks` of `n`, if given) may touch something.
+    fn lanes_may_collide(&mut self, t: Option<(&[usize; LANES], usize)>) -> bool {
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: the CPU has AVX2 (checked at construction).
@@ -474,9 +470,10 @@ impl BatchChecker {
     }
 
     /// Writes the lanes from the edge: variable `j` of lane `i` is `start[j] + t[i] · delta[j]`
-    /// (in `f64`, then rounded: the same values on every path).
+    /// with `t[i] = ks[i] / n` (in `f64`, then rounded: the same values on every path).
     #[inline(always)]
-    fn fill_lanes(&mut self, t: &[f64; LANES]) {
+    fn fill_lanes(&mut self, (ks, n): (&[usize; LANES], usize)) {
+        let t: [f64; LANES] = std::array::from_fn(|i| ks[i] as f64 / n as f64);
         for ((lane, &aj), &dj) in self.lanes.iter_mut().zip(&self.start).zip(&self.delta) {
             *lane = F8(std::array::from_fn(|i| (aj + t[i] * dj) as f32));
         }
@@ -500,12 +497,12 @@ impl BatchChecker {
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn check_avx2(&mut self, t: Option<&[f64; LANES]>) -> bool {
+    unsafe fn check_avx2(&mut self, t: Option<(&[usize; LANES], usize)>) -> bool {
         self.check(t)
     }
 
     #[inline(always)]
-    fn check(&mut self, t: Option<&[f64; LANES]>) -> bool {
+    fn check(&mut self, t: Option<(&[usize; LANES], usize)>) -> bool {
         if let Some(t) = t {
             self.fill_lanes(t);
         }
