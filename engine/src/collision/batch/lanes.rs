@@ -365,6 +365,44 @@ impl Pose8 {
     }
 }
 
+/// Writes the eight points `start + t[i] · delta` of an edge into `out`, variable by variable
+/// (`out[j]` lane `i` = `start[j] + t[i] · delta[j]`, in `f64`, then rounded), in AVX2
+/// registers when `avx2` (the caller checked the CPU). The same operations either way: LLVM
+/// left the portable loop's conversions lane by lane.
+#[inline(always)]
+pub fn edge_lanes(out: &mut [F8], start: &[f64], delta: &[f64], t: &[f64; LANES], avx2: bool) {
+    #[cfg(target_arch = "x86_64")]
+    if avx2 {
+        // SAFETY: the CPU has AVX2 (the caller says so, from `has_avx2`).
+        return unsafe { edge_lanes_avx2(out, start, delta, t) };
+    }
+    let _ = avx2;
+    for ((lane, &a), &d) in out.iter_mut().zip(start).zip(delta) {
+        *lane = F8(std::array::from_fn(|i| (a + t[i] * d) as f32));
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn edge_lanes_avx2(out: &mut [F8], start: &[f64], delta: &[f64], t: &[f64; LANES]) {
+    use std::arch::x86_64::*;
+    // SAFETY: `t` holds eight values (unaligned loads).
+    let (t_lo, t_hi) = unsafe {
+        (
+            _mm256_loadu_pd(t.as_ptr()),
+            _mm256_loadu_pd(t.as_ptr().add(4)),
+        )
+    };
+    for ((lane, &a), &d) in out.iter_mut().zip(start).zip(delta) {
+        let (a, d) = (_mm256_set1_pd(a), _mm256_set1_pd(d));
+        let lo = _mm256_cvtpd_ps(_mm256_add_pd(a, _mm256_mul_pd(t_lo, d)));
+        let hi = _mm256_cvtpd_ps(_mm256_add_pd(a, _mm256_mul_pd(t_hi, d)));
+        // SAFETY: an `F8` is 32 bytes aligned to 32.
+        unsafe { _mm256_store_ps(lane.0.as_mut_ptr(), _mm256_set_m128(hi, lo)) };
+    }
+}
+
 /// Entry `(i, j)` of the product `a · b` of row-major rotations.
 #[inline(always)]
 fn dot3(a: &[F8; 9], b: &[F8; 9], i: usize, j: usize) -> F8 {
@@ -402,6 +440,39 @@ mod tests {
                 pose.apply_const_on(c, false).map(|v| v.0),
                 portable.map(|v| v.0)
             );
+        }
+    }
+
+    /// The edge's lanes written in AVX2 equal the portable ones, bit for bit.
+    #[test]
+    fn edge_lanes_in_avx2_equal_the_portable_ones() {
+        if !has_avx2() {
+            return;
+        }
+        let mut seed = 11u64;
+        let mut next = || {
+            seed = seed
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 * 8.0 - 4.0
+        };
+        for n in 1..60usize {
+            let start: Vec<f64> = (0..7).map(|_| next()).collect();
+            let delta: Vec<f64> = (0..7).map(|_| next()).collect();
+            let t: [f64; LANES] = std::array::from_fn(|i| ((i * 5) % (n + 1)) as f64 / n as f64);
+            let (mut portable, mut vector) = (vec![F8::default(); 7], vec![F8::default(); 7]);
+            edge_lanes(&mut portable, &start, &delta, &t, false);
+            edge_lanes(&mut vector, &start, &delta, &t, true);
+            for (j, (p, v)) in portable.iter().zip(&vector).enumerate() {
+                assert_eq!(
+                    p.0.map(f32::to_bits),
+                    v.0.map(f32::to_bits),
+                    "n {n}, joint {j}"
+                );
+                for (i, &x) in p.0.iter().enumerate() {
+                    assert_eq!(x, (start[j] + t[i] * delta[j]) as f32);
+                }
+            }
         }
     }
 

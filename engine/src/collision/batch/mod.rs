@@ -31,7 +31,7 @@ use crate::robot::fk::JointFrames;
 use crate::robot::{Motion, Robot};
 use crate::world::map::{Clearance, OccupancyMap};
 use crate::world::Environment;
-use lanes::{has_avx2, Pose8, ALL_LANES, F8, LANES};
+use lanes::{edge_lanes, has_avx2, Pose8, ALL_LANES, F8, LANES};
 use std::sync::Arc;
 
 /// Environment contacts remembered and tried first in the next batch (see
@@ -474,9 +474,7 @@ impl BatchChecker {
     #[inline(always)]
     fn fill_lanes(&mut self, (ks, n): (&[usize; LANES], usize)) {
         let t: [f64; LANES] = std::array::from_fn(|i| ks[i] as f64 / n as f64);
-        for ((lane, &aj), &dj) in self.lanes.iter_mut().zip(&self.start).zip(&self.delta) {
-            *lane = F8(std::array::from_fn(|i| (aj + t[i] * dj) as f32));
-        }
+        edge_lanes(&mut self.lanes, &self.start, &self.delta, &t, self.avx2);
     }
 
     /// States checked so far (edge states; padding not counted).
