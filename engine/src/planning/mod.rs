@@ -1,6 +1,7 @@
 //! Motion planning: requests, outcomes, and the planner pipeline.
 //!
-//! - [`sampler`]: the `Sampler` plug-in point and uniform sampling;
+//! - [`sampler`]: the `Sampler` plug-in point and uniform sampling, from the planner's random
+//!   numbers ([`PlannerRng`]);
 //! - [`rrt_connect`]: bidirectional RRT over the planning group;
 //! - [`simplify`]: shortcutting and redundant-vertex removal;
 //! - [`nearest`]: nearest-neighbour index over tree nodes;
@@ -13,6 +14,7 @@
 
 pub mod ik;
 pub mod nearest;
+mod rng;
 pub mod rrt_connect;
 pub mod sampler;
 pub mod simplify;

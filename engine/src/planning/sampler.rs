@@ -5,8 +5,7 @@
 
 use crate::robot::Robot;
 
-/// The planner's random number generator: fast, seedable, identical on every platform.
-pub type PlannerRng = rand_xoshiro::Xoshiro256PlusPlus;
+pub use super::rng::PlannerRng;
 
 /// Draws configurations for the planner.
 pub trait Sampler {
@@ -21,6 +20,6 @@ pub struct UniformSampler;
 impl Sampler for UniformSampler {
     #[inline]
     fn sample(&mut self, robot: &Robot, rng: &mut PlannerRng, out: &mut [f64]) {
-        robot.sample_uniform(rng, out);
+        robot.sample_uniform_fast(rng, out);
     }
 }

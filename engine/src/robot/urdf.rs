@@ -432,6 +432,7 @@ pub(crate) fn build(input: &BuildInput, info: &mut LoadInfo) -> Result<Built, Lo
         name: urdf.name.clone(),
         group_name,
         links,
+        limit_box: super::config_space::LimitBox::of(&variables),
         variables,
         limits,
         tip,
