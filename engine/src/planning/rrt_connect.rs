@@ -122,8 +122,8 @@ impl Phases {
     }
 }
 
-/// Runs `f`; when `on` (an iteration of the split's sample), adds its ticks, scaled by
-/// [`SPLIT_EVERY`], to `phase`.
+/// Runs `f`; when `on` (an iteration of the split's sample), adds its ticks, less the clock's
+/// own ([`tick_overhead`]), scaled by [`SPLIT_EVERY`], to `phase`.
 #[inline(always)]
 fn timed<T>(on: bool, phase: &mut u64, f: impl FnOnce() -> T) -> T {
     if !on {
@@ -131,8 +131,25 @@ fn timed<T>(on: bool, phase: &mut u64, f: impl FnOnce() -> T) -> T {
     }
     let t = ticks();
     let out = f();
-    *phase += SPLIT_EVERY * ticks().wrapping_sub(t);
+    let spent = ticks().wrapping_sub(t).saturating_sub(tick_overhead());
+    *phase += SPLIT_EVERY * spent;
     out
+}
+
+/// Ticks two back-to-back readings of [`ticks`] take (the least of a few tries), measured
+/// once: on an iteration that only draws a sample and rejects it, a phase takes a few dozen
+/// nanoseconds, and the readings would otherwise be counted in it.
+fn tick_overhead() -> u64 {
+    static OVERHEAD: std::sync::OnceLock<u64> = std::sync::OnceLock::new();
+    *OVERHEAD.get_or_init(|| {
+        (0..64)
+            .map(|_| {
+                let t = ticks();
+                ticks().wrapping_sub(t)
+            })
+            .min()
+            .unwrap_or(0)
+    })
 }
 
 /// A cheap monotonic tick count for the time split: the CPU's time-stamp counter on x86-64
