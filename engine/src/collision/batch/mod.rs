@@ -515,9 +515,13 @@ impl BatchChecker {
             }
             self.epoch = 1;
         }
-        for k in 0..self.posed.len() {
-            self.fk_link(self.posed[k]);
+        // Moved out while the poses are written: the loop then keeps its place in registers
+        // instead of reloading the list and checking the index per link.
+        let posed = std::mem::take(&mut self.posed);
+        for &l in &posed {
+            self.fk_link(l);
         }
+        self.posed = posed;
         // The environment places each moving link's bound as it reaches it (most batches end
         // at the first link or two); the self pairs need them all, placed by then.
         self.env_contact() || self.self_contact()
