@@ -511,7 +511,7 @@ pub fn bisection_order(n: usize) -> Bisection {
 
 /// The iterator of [`bisection_order`]: the steps `step, 3 step, 5 step, …` below `n`, for
 /// `step` halving down to one. (A hand-written state machine: the adapter chain it replaces
-/// cost a few hundred instructions per motion, as much as the motion's set-up.)
+/// cost ~200 instructions per motion, as much as the rest of the motion's set-up.)
 #[derive(Debug, Clone)]
 pub struct Bisection {
     n: usize,

@@ -460,13 +460,13 @@ impl BatchChecker {
 
     /// True when any of the eight configurations in `self.lanes` (first written from the
     /// edge's states `ks` of `n`, if given) may touch something.
-    fn lanes_may_collide(&mut self, t: Option<(&[usize; LANES], usize)>) -> bool {
+    fn lanes_may_collide(&mut self, edge: Option<(&[usize; LANES], usize)>) -> bool {
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: the CPU has AVX2 (checked at construction).
-            return unsafe { self.check_avx2(t) };
+            return unsafe { self.check_avx2(edge) };
         }
-        self.check(t)
+        self.check(edge)
     }
 
     /// Writes the lanes from the edge: variable `j` of lane `i` is `start[j] + t[i] · delta[j]`
@@ -495,14 +495,14 @@ impl BatchChecker {
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn check_avx2(&mut self, t: Option<(&[usize; LANES], usize)>) -> bool {
-        self.check(t)
+    unsafe fn check_avx2(&mut self, edge: Option<(&[usize; LANES], usize)>) -> bool {
+        self.check(edge)
     }
 
     #[inline(always)]
-    fn check(&mut self, t: Option<(&[usize; LANES], usize)>) -> bool {
-        if let Some(t) = t {
-            self.fill_lanes(t);
+    fn check(&mut self, edge: Option<(&[usize; LANES], usize)>) -> bool {
+        if let Some(edge) = edge {
+            self.fill_lanes(edge);
         }
         self.epoch += 1;
         self.batches += 1;
