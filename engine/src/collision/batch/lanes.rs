@@ -403,6 +403,56 @@ unsafe fn edge_lanes_avx2(out: &mut [F8], start: &[f64], delta: &[f64], t: &[f64
     }
 }
 
+/// The lanes (as bits) whose box `[lo, hi]` (per axis, eight boxes in lanes) overlaps the
+/// box `[b_lo, b_hi]` (the same in every lane), in AVX2 registers when `avx2` (the caller
+/// checked the CPU). Comparisons only, so the same answer either way; LLVM computed the
+/// portable form in halves.
+#[inline(always)]
+pub fn boxes_overlapping(
+    lo: &[F8; 3],
+    hi: &[F8; 3],
+    b_lo: [f32; 3],
+    b_hi: [f32; 3],
+    avx2: bool,
+) -> u32 {
+    #[cfg(target_arch = "x86_64")]
+    if avx2 {
+        // SAFETY: the CPU has AVX2 (the caller says so, from `has_avx2`).
+        return unsafe { boxes_overlapping_avx2(lo, hi, b_lo, b_hi) };
+    }
+    let _ = avx2;
+    let reach = (lo[0].le(F8::splat(b_hi[0])) & F8::splat(b_lo[0]).le(hi[0]))
+        & (lo[1].le(F8::splat(b_hi[1])) & F8::splat(b_lo[1]).le(hi[1]))
+        & (lo[2].le(F8::splat(b_hi[2])) & F8::splat(b_lo[2]).le(hi[2]));
+    reach.bits()
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn boxes_overlapping_avx2(
+    lo: &[F8; 3],
+    hi: &[F8; 3],
+    b_lo: [f32; 3],
+    b_hi: [f32; 3],
+) -> u32 {
+    use std::arch::x86_64::*;
+    let mut reach = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
+    for a in 0..3 {
+        // SAFETY: an `F8` is 32 bytes aligned to 32.
+        let (l, h) = unsafe {
+            (
+                _mm256_load_ps(lo[a].0.as_ptr()),
+                _mm256_load_ps(hi[a].0.as_ptr()),
+            )
+        };
+        let below = _mm256_cmp_ps::<_CMP_LE_OQ>(l, _mm256_set1_ps(b_hi[a]));
+        let above = _mm256_cmp_ps::<_CMP_LE_OQ>(_mm256_set1_ps(b_lo[a]), h);
+        reach = _mm256_and_ps(reach, _mm256_and_ps(below, above));
+    }
+    _mm256_movemask_ps(reach) as u32
+}
+
 /// Entry `(i, j)` of the product `a · b` of row-major rotations.
 #[inline(always)]
 fn dot3(a: &[F8; 9], b: &[F8; 9], i: usize, j: usize) -> F8 {
@@ -472,6 +522,31 @@ mod tests {
                 for (i, &x) in p.0.iter().enumerate() {
                     assert_eq!(x, (start[j] + t[i] * delta[j]) as f32);
                 }
+            }
+        }
+    }
+
+    /// The box overlap test in AVX2 gives the portable answer and each lane's meaning.
+    #[test]
+    fn box_overlaps_in_avx2_equal_the_portable_ones() {
+        let mut seed = 5u32;
+        let mut next = || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (seed >> 8) as f32 / (1 << 24) as f32 * 2.0 - 1.0
+        };
+        for _ in 0..500 {
+            let lo: [F8; 3] = std::array::from_fn(|_| F8(std::array::from_fn(|_| next())));
+            let hi: [F8; 3] = std::array::from_fn(|a| F8(lo[a].0.map(|v| v + 0.3)));
+            let b_lo = [next(), next(), next()];
+            let b_hi = b_lo.map(|v| v + 0.2);
+            let portable = boxes_overlapping(&lo, &hi, b_lo, b_hi, false);
+            let meaning = (0..LANES).fold(0, |m, k| {
+                let hit = (0..3).all(|a| lo[a].0[k] <= b_hi[a] && b_lo[a] <= hi[a].0[k]);
+                m | (hit as u32) << k
+            });
+            assert_eq!(portable, meaning);
+            if has_avx2() {
+                assert_eq!(boxes_overlapping(&lo, &hi, b_lo, b_hi, true), portable);
             }
         }
     }

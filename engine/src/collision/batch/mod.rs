@@ -31,7 +31,7 @@ use crate::robot::fk::JointFrames;
 use crate::robot::{Motion, Robot};
 use crate::world::map::{Clearance, OccupancyMap};
 use crate::world::Environment;
-use lanes::{edge_lanes, has_avx2, Pose8, ALL_LANES, F8, LANES};
+use lanes::{boxes_overlapping, edge_lanes, has_avx2, Pose8, ALL_LANES, F8, LANES};
 use std::sync::Arc;
 
 /// Environment contacts remembered and tried first in the next batch (see
@@ -726,14 +726,12 @@ impl BatchChecker {
         if self.objects.is_empty() {
             return 0;
         }
-        let lo = b.map(|v| F8::splat(v.hmin() - br));
-        let hi = b.map(|v| F8::splat(v.hmax() + br));
+        let lo = b.map(|v| v.hmin() - br);
+        let hi = b.map(|v| v.hmax() + br);
         let mut cand = 0u64;
         for (block, (olo, ohi)) in self.object_boxes.iter().enumerate() {
-            let reach = (olo[0].le(hi[0]) & lo[0].le(ohi[0]))
-                & (olo[1].le(hi[1]) & lo[1].le(ohi[1]))
-                & (olo[2].le(hi[2]) & lo[2].le(ohi[2]));
-            cand |= (reach.bits() as u64) << (block * LANES);
+            let reach = boxes_overlapping(olo, ohi, lo, hi, self.avx2);
+            cand |= (reach as u64) << (block * LANES);
         }
         penetrated(&self.objects, cand, b, br)
     }
