@@ -244,6 +244,25 @@ impl Robot {
     }
 }
 
+/// The joint limits as flat arrays, for the uniform sampler's vector path.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub(crate) struct LimitBox {
+    /// Per variable: its lower limit.
+    pub lower: Vec<f64>,
+    /// Per variable: upper less lower limit.
+    pub span: Vec<f64>,
+}
+
+impl LimitBox {
+    /// The box of `variables`.
+    pub fn of(variables: &[super::Variable]) -> Self {
+        LimitBox {
+            lower: variables.iter().map(|v| v.lower).collect(),
+            span: variables.iter().map(|v| v.upper - v.lower).collect(),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -304,24 +323,5 @@ mod tests {
         let mut mid = [0.0; 8];
         sut.interpolate(&a, &b, 0.5, &mut mid);
         assert!((mid[3].abs() - PI).abs() < 1e-9);
-    }
-}
-
-/// The joint limits as flat arrays, for the uniform sampler's vector path.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub(crate) struct LimitBox {
-    /// Per variable: its lower limit.
-    pub lower: Vec<f64>,
-    /// Per variable: upper less lower limit.
-    pub span: Vec<f64>,
-}
-
-impl LimitBox {
-    /// The box of `variables`.
-    pub fn of(variables: &[super::Variable]) -> Self {
-        LimitBox {
-            lower: variables.iter().map(|v| v.lower).collect(),
-            span: variables.iter().map(|v| v.upper - v.lower).collect(),
-        }
     }
 }

@@ -463,6 +463,17 @@ fn dot3(a: &[F8; 9], b: &[F8; 9], i: usize, j: usize) -> F8 {
 mod tests {
     use super::*;
 
+    /// Repeatable test values in `[-half_width, half_width)` (a 64-bit linear congruential
+    /// sequence from `seed`).
+    fn values(mut seed: u64, half_width: f64) -> impl FnMut() -> f64 {
+        move || {
+            seed = seed
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            ((seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0) * half_width
+        }
+    }
+
     /// The AVX2 placement of a fixed point gives the portable one's values, bit for bit, on
     /// poses with a different rotation and translation in every lane.
     #[test]
@@ -470,11 +481,8 @@ mod tests {
         if !has_avx2() {
             return;
         }
-        let mut seed = 7u32;
-        let mut next = || {
-            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-            (seed >> 8) as f32 / (1 << 24) as f32 * 4.0 - 2.0
-        };
+        let mut values = values(7, 2.0);
+        let mut next = || values() as f32;
         for _ in 0..200 {
             let pose = Pose8 {
                 r: std::array::from_fn(|_| F8(std::array::from_fn(|_| next()))),
@@ -499,13 +507,7 @@ mod tests {
         if !has_avx2() {
             return;
         }
-        let mut seed = 11u64;
-        let mut next = || {
-            seed = seed
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 * 8.0 - 4.0
-        };
+        let mut next = values(11, 4.0);
         for n in 1..60usize {
             let start: Vec<f64> = (0..7).map(|_| next()).collect();
             let delta: Vec<f64> = (0..7).map(|_| next()).collect();
@@ -529,11 +531,8 @@ mod tests {
     /// The box overlap test in AVX2 gives the portable answer and each lane's meaning.
     #[test]
     fn box_overlaps_in_avx2_equal_the_portable_ones() {
-        let mut seed = 5u32;
-        let mut next = || {
-            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-            (seed >> 8) as f32 / (1 << 24) as f32 * 2.0 - 1.0
-        };
+        let mut values = values(5, 1.0);
+        let mut next = || values() as f32;
         for _ in 0..500 {
             let lo: [F8; 3] = std::array::from_fn(|_| F8(std::array::from_fn(|_| next())));
             let hi: [F8; 3] = std::array::from_fn(|a| F8(lo[a].0.map(|v| v + 0.3)));
