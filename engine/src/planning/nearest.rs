@@ -134,6 +134,24 @@ impl NearestIndex {
 
     /// The number and squared distance of the point nearest to `target`; `None` when empty.
     pub fn nearest(&mut self, target: &[f64]) -> Option<(u32, f64)> {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: the CPU has AVX2 (checked at construction).
+            return unsafe { self.nearest_avx2(target) };
+        }
+        self.nearest_any(target)
+    }
+
+    /// [`NearestIndex::nearest`] compiled for AVX2 as a whole: the query's set-up and the
+    /// answer's exact distance in vector registers too, around the kernel inlined.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn nearest_avx2(&mut self, target: &[f64]) -> Option<(u32, f64)> {
+        self.nearest_any(target)
+    }
+
+    #[inline(always)]
+    fn nearest_any(&mut self, target: &[f64]) -> Option<(u32, f64)> {
         // The common arm sizes get their number of joints known: the query's set-up and the
         // answer's exact distance unrolled, without bounds checks (they had cost more than
         // the distance kernel on small trees).
@@ -168,15 +186,16 @@ impl NearestIndex {
         let dof = if DOF == 0 { self.dof } else { DOF };
         let (p, lo, hi) = (&p[..dof], &self.inside_lo[..dof], &self.inside_hi[..dof]);
         let (q, q32) = (&mut self.target[..dof], &mut self.target32[..dof]);
-        let mut outside = false;
-        for j in 0..dof {
-            let v = p[j];
-            // Not short-circuited: one pass of comparisons (a NaN counts as outside).
-            outside |= !((v >= lo[j]) & (v < hi[j]));
-            q[j] = v;
-            q32[j] = v as f32;
-        }
-        if outside {
+        #[cfg(target_arch = "x86_64")]
+        let inside = if self.avx2 {
+            // SAFETY: the CPU has AVX2 (checked at construction).
+            unsafe { copy_query_avx2(p, lo, hi, q, q32) }
+        } else {
+            copy_query(p, lo, hi, q, q32)
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let inside = copy_query(p, lo, hi, q, q32);
+        if !inside {
             let mut q = std::mem::take(&mut self.target);
             self.wrapped(p, &mut q);
             for (l, &v) in self.target32.iter_mut().zip(&q) {
@@ -367,7 +386,7 @@ impl NearestIndex {
 
     /// The least squared distance (in `f32`) from `q` (wrapped) to a point of `leaf`, and the
     /// first slot at it.
-    #[inline]
+    #[inline(always)]
     fn leaf_nearest(&self, leaf: usize) -> (f32, usize) {
         let q = &self.target32;
         let blocks = (self.len[leaf] as usize).div_ceil(8);
@@ -396,6 +415,54 @@ impl NearestIndex {
         }
         d2
     }
+}
+
+/// Copies `p` into `q`, and into `q32` rounded to `f32`, and says whether every value lies
+/// in `[lo, hi)` (a NaN does not). All slices have the length of `p`.
+#[inline(always)]
+fn copy_query(p: &[f64], lo: &[f64], hi: &[f64], q: &mut [f64], q32: &mut [f32]) -> bool {
+    let mut inside = true;
+    for (j, &v) in p.iter().enumerate() {
+        // Not short-circuited: one pass of comparisons.
+        inside &= (v >= lo[j]) & (v < hi[j]);
+        q[j] = v;
+        q32[j] = v as f32;
+    }
+    inside
+}
+
+/// [`copy_query`] four joints per AVX2 instruction (the same comparisons and rounding).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn copy_query_avx2(
+    p: &[f64],
+    lo: &[f64],
+    hi: &[f64],
+    q: &mut [f64],
+    q32: &mut [f32],
+) -> bool {
+    use std::arch::x86_64::*;
+    let n = p.len();
+    assert!(lo.len() >= n && hi.len() >= n && q.len() >= n && q32.len() >= n);
+    let four = n / 4 * 4;
+    let mut inside = 0xf;
+    for j in (0..four).step_by(4) {
+        // SAFETY: j + 4 <= n, within every slice (asserted above).
+        let v = _mm256_loadu_pd(p.as_ptr().add(j));
+        let ge = _mm256_cmp_pd::<_CMP_GE_OQ>(v, _mm256_loadu_pd(lo.as_ptr().add(j)));
+        let lt = _mm256_cmp_pd::<_CMP_LT_OQ>(v, _mm256_loadu_pd(hi.as_ptr().add(j)));
+        inside &= _mm256_movemask_pd(_mm256_and_pd(ge, lt));
+        _mm256_storeu_pd(q.as_mut_ptr().add(j), v);
+        _mm_storeu_ps(q32.as_mut_ptr().add(j), _mm256_cvtpd_ps(v));
+    }
+    let rest = copy_query(
+        &p[four..],
+        &lo[four..n],
+        &hi[four..n],
+        &mut q[four..n],
+        &mut q32[four..n],
+    );
+    inside == 0xf && rest
 }
 
 /// The distance kernel: block by block of eight slots, each block's sums kept in lanes over
@@ -628,6 +695,44 @@ mod tests {
                     // SAFETY: the CPU has AVX2.
                     let vector = unsafe { leaf_nearest_avx2(&coords, &q, continuous, blocks) };
                     assert_eq!(portable, vector, "{dof} joints");
+                }
+            }
+        }
+    }
+
+    /// The query's set-up in vector registers copies, rounds and checks the range as the
+    /// portable loop does (NaN and values on either side of each bound included).
+    #[test]
+    fn vector_query_copy_equals_the_portable_one() {
+        #[cfg(target_arch = "x86_64")]
+        if has_avx2() {
+            let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+            for dof in [3, 4, 5, 7, 8, 9] {
+                let lo: Vec<f64> = (0..dof)
+                    .map(|j| if j % 2 == 0 { -PI } else { -1e300 })
+                    .collect();
+                let hi: Vec<f64> = (0..dof)
+                    .map(|j| if j % 2 == 0 { PI } else { 1e300 })
+                    .collect();
+                for _ in 0..2000 {
+                    let p: Vec<f64> = (0..dof)
+                        .map(|j| match rng.random_range(0..20) {
+                            0 => f64::NAN,
+                            1 => lo[j],
+                            2 => hi[j],
+                            _ => rng.random_range(-4.0..4.0),
+                        })
+                        .collect();
+                    let (mut q, mut q32) = (vec![0.0; dof], vec![0.0f32; dof]);
+                    let (mut v, mut v32) = (vec![0.0; dof], vec![0.0f32; dof]);
+                    let inside = copy_query(&p, &lo, &hi, &mut q, &mut q32);
+                    // SAFETY: the CPU has AVX2.
+                    let vector = unsafe { copy_query_avx2(&p, &lo, &hi, &mut v, &mut v32) };
+                    assert_eq!(inside, vector, "{p:?}");
+                    let bits = |x: &[f64]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+                    assert_eq!(bits(&q), bits(&v));
+                    let bits32 = |x: &[f32]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+                    assert_eq!(bits32(&q32), bits32(&v32));
                 }
             }
         }
