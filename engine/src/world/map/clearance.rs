@@ -4,10 +4,11 @@
 //! Two grids: the fine one's cells are the map's voxels, the coarse one's its 4×4×4 blocks
 //! (reaching three times as far, for the links' and clusters' larger balls). Each cell holds
 //! the exact Euclidean distance (a separable transform, in cell units) from its centre to the
-//! nearest occupied cell centre, rounded down to 1/16 of a cell and saturated at the grid's
+//! nearest occupied cell's cube, rounded down to 1/16 of a cell and saturated at the grid's
 //! padding. A ball at `p` (in cell `q`) with radius `r` is clear of every occupied cell cube
-//! (and so of every occupied voxel) when `d(q) − |p − c(q)| − h ≥ r`, with `h` a cell's half
-//! diagonal: the triangle inequality twice.
+//! (and so of every occupied voxel) when `d(q) − |p − c(q)| ≥ r` (a distance to a set changes
+//! no faster than the point moves), and surely touches one when `d(q) + |p − c(q)|` (plus the
+//! rounding) is below `r`.
 //! The grid covers a box holding every occupied voxel (the cover) grown by the padding; farther
 //! out the cover itself bounds the distance. A query the grid cannot clear is decided exactly by
 //! the map ([`OccupancyMap::sphere_collides`](super::OccupancyMap::sphere_collides)).
@@ -138,7 +139,7 @@ impl Clearance {
         let coarse = Level::empty(4.0 * res, COARSE_REACH * pad, cover)?;
         let mut c = Clearance {
             // Balls the fine grid can clear: within its saturation.
-            fine_radius: (fine.cap() as f64 / STEPS * res).min(pad) - 2.0 * fine.half_diagonal,
+            fine_radius: (fine.cap() as f64 / STEPS * res).min(pad) - fine.half_diagonal,
             fine,
             coarse,
             cover,
@@ -292,10 +293,11 @@ impl Clearance {
 
     /// [`Clearance::unclear8`] for balls of the robot's geometry, which also confirms
     /// contacts: `None` when the ball surely touches an occupied voxel in some lane of
-    /// `lanes`. From the same read: the nearest occupied voxel centre is nearer than the
-    /// cell's distance (rounded down, so plus one stored unit) and the ball's offset from the
-    /// cell centre, so a ball larger than that holds it. (The fine grid only: a coarse cell is
-    /// a block, whose occupied voxel may lie anywhere in it.)
+    /// `lanes`. From the same read: the cube of the occupied voxel nearest the cell centre is
+    /// nearer to the ball's centre than the cell's distance (rounded down, so plus one stored
+    /// unit) and the centre's offset from the cell centre, so a ball larger than that reaches
+    /// it. (The fine grid only: a coarse cell is a block, whose occupied voxel may lie anywhere
+    /// in it.)
     #[inline(always)]
     pub fn sphere8(&self, p: [F8; 3], r: f32, lanes: u32) -> Option<u32> {
         self.test8::<true>(p, r, lanes)
@@ -456,7 +458,7 @@ impl Level {
                     last: dims.map(|d| (d - 1) as f32),
                     bdims: bdims.map(|d| d as u32),
                     step: (self.res / STEPS) as f32,
-                    reach: self.half_diagonal as f32 + F32_SLACK,
+                    reach: F32_SLACK,
                 };
                 true
             }
@@ -553,17 +555,26 @@ impl Level {
             .map(|a| (p[a] - (k[a] as f64 + 0.5) * self.res).powi(2))
             .sum::<f64>()
             .sqrt();
-        Some(d - off - self.half_diagonal)
+        Some(d - off)
     }
 }
 
-/// Exact squared distances (cell units) from every cell of the grid to the nearest of `keys`,
-/// one axis at a time, stored as `floor(32·distance)` saturated at `pad` cells. As results
-/// saturate, each pass needs only the neighbours within `pad` cells: a cell under the padding
-/// has its nearest key within `pad` along every axis. The first pass (along `z`, on the bare
-/// keys) counts cells to the nearest key; the others take, row by row, the minimum of the
-/// `2·pad + 1` neighbouring rows each raised by its squared offset, over whole contiguous
-/// rows at once (which vectorises), skipping rows nothing finite has reached.
+/// Along one axis, the gap from a cell centre to the cube of a cell `cells` away (a whole
+/// number): half a cell less, none for the cell itself.
+#[inline]
+fn cube_gap(cells: f32) -> f32 {
+    (cells - 0.5).max(0.0)
+}
+
+/// Exact distances (cell units) from every cell centre of the grid to the nearest cube of the
+/// cells `keys`, one axis at a time, stored as `floor(16·distance)` saturated at `pad` cells.
+/// The squared distance to a cube is a sum over the axes of the squared [`cube_gap`] of the
+/// offset, so the transform is separable as for centres. As results saturate, each pass needs
+/// only the neighbours within `pad` cells: a cell under the padding has its nearest key within
+/// `pad` along every axis. The first pass (along `z`, on the bare keys) counts cells to the
+/// nearest key; the others take, row by row, the minimum of the `2·pad + 1` neighbouring rows
+/// each raised by its squared gap, over whole contiguous rows at once (which vectorises),
+/// skipping rows nothing finite has reached.
 fn distance_transform(keys: &[VoxelKey], lo: VoxelKey, dims: [usize; 3], pad: f64) -> Vec<Cell> {
     let n = dims[0] * dims[1] * dims[2];
     let pad_cells = pad as usize;
@@ -589,7 +600,7 @@ fn distance_transform(keys: &[VoxelKey], lo: VoxelKey, dims: [usize; 3], pad: f6
         let mut run = usize::MAX;
         for v in row.iter_mut().rev() {
             run = if *v == 0.0 { 0 } else { run.saturating_add(1) };
-            let m = v.min(run as f32);
+            let m = cube_gap(v.min(run as f32));
             *v = if m * m <= far { m * m } else { f32::INFINITY };
         }
     }
@@ -631,7 +642,7 @@ fn distance_transform(keys: &[VoxelKey], lo: VoxelKey, dims: [usize; 3], pad: f6
                     if p == t {
                         continue;
                     }
-                    let w = ((p as f32) - (t as f32)).powi(2);
+                    let w = cube_gap((p as f32 - t as f32).abs()).powi(2);
                     for (o, &v) in out.iter_mut().zip(&src[q * dims[2]..][..dims[2]]) {
                         let c = v + w;
                         // A select, not a branch: this is what vectorises.
@@ -730,12 +741,15 @@ mod tests {
         let map = map_of(&[[0, 0, 0], [5, 0, 0]]);
         let c = Clearance::of(&map, 0.2).unwrap();
         let g = &c.fine;
+        // Cell units, to the occupied cells' cubes (half a cell short of their centres along
+        // each axis).
         let at = |k: [i32; 3]| g.at(k).unwrap() as f64 / STEPS;
         assert_eq!(at([0, 0, 0]), 0.0);
-        assert_eq!(at([2, 0, 0]), 2.0);
-        assert_eq!(at([3, 0, 0]), 2.0);
-        assert!((at([0, 3, 4]) - 5.0).abs() < 1.0 / STEPS);
-        assert!((at([1, 1, 1]) - 3f64.sqrt()).abs() < 1.0 / STEPS);
+        assert_eq!(at([1, 0, 0]), 0.5);
+        assert_eq!(at([2, 0, 0]), 1.5);
+        assert_eq!(at([3, 0, 0]), 1.5);
+        assert!((at([0, 3, 4]) - 18.5f64.sqrt()).abs() < 1.0 / STEPS);
+        assert!((at([1, 1, 1]) - 0.75f64.sqrt()).abs() < 1.0 / STEPS);
     }
 
     proptest! {
@@ -753,12 +767,13 @@ mod tests {
                     prop_assert!(!map.sphere_touches_voxels(p, r), "cleared {p:?} r {r}");
                 }
             }
-            // Every cell holds the brute-force distance (rounded down, saturated).
+            // Every cell holds the brute-force distance to the cubes (rounded down, saturated).
             let g = &c.fine;
             for (k, cell) in g.cells() {
+                let gap = |d: i32| (f64::from(d.abs()) - 0.5).max(0.0);
                 let d2 = voxels
                     .iter()
-                    .map(|v| (0..3).map(|a| ((v[a] - k[a]) as f64).powi(2)).sum::<f64>())
+                    .map(|v| (0..3).map(|a| gap(v[a] - k[a]).powi(2)).sum::<f64>())
                     .fold(f64::INFINITY, f64::min);
                 let want = ((d2.sqrt() * STEPS).floor()).min(5.0 * STEPS) as Cell;
                 prop_assert_eq!(cell, want, "cell {:?}", k);
@@ -791,7 +806,7 @@ mod tests {
                     let d = g.get(cell) as f32 * (res / STEPS as f32);
                     let o = [0, 1, 2].map(|a| x[a] - (k[a] as f32 + 0.5) * res);
                     let off = (o[0] * o[0] + o[1] * o[1] + o[2] * o[2]).sqrt();
-                    d - off >= r + g.half_diagonal as f32 + F32_SLACK
+                    d - off >= r + F32_SLACK
                 } else {
                     c.clear(x.map(f64::from), f64::from(r + F32_SLACK))
                 };
