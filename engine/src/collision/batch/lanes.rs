@@ -151,14 +151,15 @@ impl F8 {
                 + r2 * (-0.5
                     + r2 * (1.0 / 24.0
                         + r2 * (-1.0 / 720.0 + r2 * (1.0 / 40_320.0 + r2 * (-1.0 / 3_628_800.0)))));
-            // Quadrant m = n mod 4, kept in floating point so the selections stay in vector
-            // lanes: odd quadrants swap sine and cosine; sine is negated in quadrants 2 and 3,
-            // cosine in 1 and 2.
-            let m = n - 4.0 * (n * 0.25).floor();
-            let odd = m == 1.0 || m == 3.0;
+            // Quadrant n mod 4, read from the low bits of n + 1.5·2²³ (whose last mantissa bits
+            // are n's in two's complement), in integer lanes: odd quadrants swap sine and
+            // cosine; sine changes sign in quadrants 2 and 3, cosine in 1 and 2 (its bit 1
+            // of n + 1), by flipping the sign bit, as negation does.
+            let m = (n + 12_582_912.0).to_bits();
+            let odd = m & 1 != 0;
             let (a, b) = if odd { (cos_r, sin_r) } else { (sin_r, cos_r) };
-            s[k] = if m >= 2.0 { -a } else { a };
-            c[k] = if m == 1.0 || m == 2.0 { -b } else { b };
+            s[k] = f32::from_bits(a.to_bits() ^ ((m & 2) << 30));
+            c[k] = f32::from_bits(b.to_bits() ^ ((m.wrapping_add(1) & 2) << 30));
         }
         (F8(s), F8(c))
     }
