@@ -64,6 +64,31 @@ struct Joint8 {
     parent: Option<usize>,
     kind: Kind,
     variable: usize,
+    /// The same, when it is the common joint (see [`AxisTurn`]).
+    turn: Option<AxisTurn>,
+}
+
+/// The common joint, recognised once: a turn about a coordinate axis, behind an origin that
+/// only shifts, below a parent. Its pose is the parent's translated along at most one of the
+/// parent's axes (or by the origin's general shift), its rotation two columns turned: no
+/// decisions left per batch but which shift.
+#[derive(Clone, Copy)]
+struct AxisTurn {
+    parent: usize,
+    shift: Shift,
+    /// The columns that turn.
+    axes: [usize; 2],
+    sign: f32,
+    variable: usize,
+}
+
+/// An origin's translation, sorted by the work it takes.
+#[derive(Clone, Copy)]
+enum Shift {
+    None,
+    /// Along the parent's axis `k` by `v` (the other components zero).
+    Along(usize, f32),
+    General,
 }
 
 /// What a remembered contact's sphere touched.
@@ -193,11 +218,31 @@ impl BatchChecker {
                 }
                 Motion::Prismatic { axis: a, variable } => (Kind::Prismatic(axis(a)), *variable),
             };
+            let parent = link.parent.map(|p| joints.frame[p]);
+            let turn = match (k, parent, origin.turn) {
+                (Kind::RevoluteAxis(axes, sign), Some(parent), Turn::Identity) => {
+                    let nonzero: Vec<usize> = (0..3).filter(|&k| origin.t[k] != 0.0).collect();
+                    let shift = match nonzero[..] {
+                        [] => Shift::None,
+                        [k] => Shift::Along(k, origin.t[k]),
+                        _ => Shift::General,
+                    };
+                    Some(AxisTurn {
+                        parent,
+                        shift,
+                        axes,
+                        sign,
+                        variable: v,
+                    })
+                }
+                _ => None,
+            };
             joints8.push(Joint8 {
                 origin,
-                parent: link.parent.map(|p| joints.frame[p]),
+                parent,
                 kind: k,
                 variable: v,
+                turn,
             });
         }
         // Sphere-model points in the frame their link rides in.
@@ -556,6 +601,22 @@ impl BatchChecker {
         let origin = &joint.origin;
         let (done, rest) = self.poses.split_at_mut(l);
         let at = &mut rest[0];
+        if let Some(turn) = joint.turn {
+            let parent = &done[turn.parent];
+            // The same arithmetic as `Origin::translate` (zero components skipped).
+            match turn.shift {
+                Shift::None => at.t = parent.t,
+                Shift::Along(k, v) => {
+                    let v = F8::splat(v);
+                    at.t = std::array::from_fn(|row| parent.t[row] + parent.r[row * 3 + k] * v);
+                }
+                Shift::General => origin.translate(parent, at),
+            }
+            let (s, c) = self.lanes[turn.variable].sin_cos();
+            let s = s * F8::splat(turn.sign);
+            turn_columns(Some(&parent.r), &mut at.r, turn.axes, (s, c));
+            return;
+        }
         let parent = match joint.parent {
             None => {
                 *at = Pose8::splat(origin.r, origin.t);
