@@ -26,6 +26,11 @@ const SLOTS: usize = LEAF + 1;
 
 const NONE: u32 = u32::MAX;
 
+/// Relative and absolute slack (squared distance) between the lanes' `f32` distance and the
+/// exact one, far above their rounding: coordinates of a few radians or metres carry errors of
+/// ~1e-7 each, and eight squared differences of a few units sum to errors of ~1e-5.
+const APPROX_SLACK: f64 = 1e-3;
+
 /// Coordinate of an empty slot: its distance to any query is huge but finite in `f32`.
 const EMPTY: f32 = 1e15;
 
@@ -134,49 +139,79 @@ impl NearestIndex {
 
     /// The number and squared distance of the point nearest to `target`; `None` when empty.
     pub fn nearest(&mut self, target: &[f64]) -> Option<(u32, f64)> {
+        self.nearest_unless_beyond(target, &[])
+            .map(|(i, d2)| (i, d2.expect("no radius given")))
+    }
+
+    /// [`NearestIndex::nearest`], except that when the nearest point `i` is surely farther from
+    /// `target` than `radius[i]` (where given) its exact distance is not computed: `(i, None)`.
+    /// (A dynamic-domain search rejects most samples so, on the distance the lanes found,
+    /// which is far closer than the margin taken here.)
+    pub fn nearest_unless_beyond(
+        &mut self,
+        target: &[f64],
+        radius: &[f64],
+    ) -> Option<(u32, Option<f64>)> {
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: the CPU has AVX2 (checked at construction).
-            return unsafe { self.nearest_avx2(target) };
+            return unsafe { self.nearest_avx2(target, radius) };
         }
-        self.nearest_any(target)
+        self.nearest_any(target, radius)
     }
 
-    /// [`NearestIndex::nearest`] compiled for AVX2 as a whole: the query's set-up and the
-    /// answer's exact distance in vector registers too, around the kernel inlined.
+    /// [`NearestIndex::nearest_unless_beyond`] compiled for AVX2 as a whole: the query's set-up
+    /// and the answer's exact distance in vector registers too, around the kernel.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn nearest_avx2(&mut self, target: &[f64]) -> Option<(u32, f64)> {
-        self.nearest_any(target)
+    unsafe fn nearest_avx2(
+        &mut self,
+        target: &[f64],
+        radius: &[f64],
+    ) -> Option<(u32, Option<f64>)> {
+        self.nearest_any(target, radius)
     }
 
     #[inline(always)]
-    fn nearest_any(&mut self, target: &[f64]) -> Option<(u32, f64)> {
+    fn nearest_any(&mut self, target: &[f64], radius: &[f64]) -> Option<(u32, Option<f64>)> {
         // The common arm sizes get their number of joints known: the query's set-up and the
         // answer's exact distance unrolled, without bounds checks (they had cost more than
         // the distance kernel on small trees).
         match self.dof {
-            6 => self.nearest_of::<6>(target),
-            7 => self.nearest_of::<7>(target),
-            8 => self.nearest_of::<8>(target),
-            _ => self.nearest_of::<0>(target),
+            6 => self.nearest_of::<6>(target, radius),
+            7 => self.nearest_of::<7>(target, radius),
+            8 => self.nearest_of::<8>(target, radius),
+            _ => self.nearest_of::<0>(target, radius),
         }
     }
 
-    /// [`NearestIndex::nearest`] over `DOF` joints (all of them when `DOF` is 0).
+    /// [`NearestIndex::nearest_unless_beyond`] over `DOF` joints (all of them when `DOF` is 0).
     #[inline(always)]
-    fn nearest_of<const DOF: usize>(&mut self, target: &[f64]) -> Option<(u32, f64)> {
+    fn nearest_of<const DOF: usize>(
+        &mut self,
+        target: &[f64],
+        radius: &[f64],
+    ) -> Option<(u32, Option<f64>)> {
         if self.children.is_empty() {
             return None;
         }
         self.set_query::<DOF>(target);
-        let (leaf, k) = match self.children[0] {
+        let (leaf, k, approx) = match self.children[0] {
             // A tree of one bucket (most trees, most of the time): no walk.
-            [NONE, leaf] => (leaf as usize, self.leaf_nearest(leaf as usize).1),
+            [NONE, leaf] => {
+                let (approx, k) = self.leaf_nearest(leaf as usize);
+                (leaf as usize, k, approx)
+            }
             _ => self.walk(),
         };
+        let id = self.ids[leaf * SLOTS + k];
+        if let Some(&r) = radius.get(id as usize) {
+            if f64::from(approx) > r * r * (1.0 + APPROX_SLACK) + APPROX_SLACK {
+                return Some((id, None));
+            }
+        }
         // The lanes chose; the exact coordinates give the distance.
-        Some((self.ids[leaf * SLOTS + k], self.exact_dist2::<DOF>(leaf, k)))
+        Some((id, Some(self.exact_dist2::<DOF>(leaf, k))))
     }
 
     /// Holds `p` as the query: wrapped, and in `f32`. Values already inside their range
@@ -207,12 +242,12 @@ impl NearestIndex {
 
     /// The leaf and slot of the point nearest to the query, down the tree of buckets: nodes
     /// nearest box first, skipping any box farther than the best point found.
-    fn walk(&mut self) -> (usize, usize) {
+    fn walk(&mut self) -> (usize, usize, f32) {
         let mut stack = std::mem::take(&mut self.stack);
         stack.clear();
         stack.push((0, 0.0));
         let mut best = f64::INFINITY;
-        let mut best_slot = (0, 0);
+        let mut best_slot = (0, 0, f32::INFINITY);
         while let Some((at, bound)) = stack.pop() {
             if bound >= best {
                 continue;
@@ -225,7 +260,7 @@ impl NearestIndex {
                     continue;
                 }
                 best = nearest_here as f64;
-                best_slot = (leaf, k);
+                best_slot = (leaf, k, nearest_here);
                 continue;
             }
             let da = self.box_dist2(a as usize);
@@ -698,6 +733,44 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A radius leaves out the exact distance only of a point surely beyond it, and otherwise
+    /// the answer is the plain query's.
+    #[test]
+    fn radius_skips_only_points_surely_beyond_it() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(9);
+        let cont = [false, true, false, true, false, false, true, false];
+        let mut idx = NearestIndex::new(&cont);
+        let mut radius = Vec::new();
+        let (mut skipped, mut kept) = (0, 0);
+        for i in 0..600u32 {
+            let p: Vec<f64> = (0..8).map(|_| rng.random_range(-3.0..3.0)).collect();
+            idx.insert(&p, i);
+            radius.push(if i % 5 == 0 {
+                f64::INFINITY
+            } else {
+                rng.random_range(1.0..4.0)
+            });
+            let q: Vec<f64> = (0..8).map(|_| rng.random_range(-3.5..3.5)).collect();
+            let (id, d2) = idx.nearest(&q).unwrap();
+            match idx.nearest_unless_beyond(&q, &radius).unwrap() {
+                (got, None) => {
+                    assert_eq!(got, id);
+                    assert!(
+                        d2.sqrt() > radius[id as usize],
+                        "{d2} within {}",
+                        radius[id as usize]
+                    );
+                    skipped += 1;
+                }
+                (got, Some(exact)) => {
+                    assert_eq!((got, exact), (id, d2));
+                    kept += 1;
+                }
+            }
+        }
+        assert!(skipped > 50 && kept > 50, "{skipped} skipped, {kept} kept");
     }
 
     /// The query's set-up in vector registers copies, rounds and checks the range as the

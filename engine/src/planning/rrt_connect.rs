@@ -60,6 +60,17 @@ impl Tree {
             .map_or((0, f64::INFINITY), |(i, d2)| (i as usize, d2.sqrt()))
     }
 
+    /// [`Tree::nearest`], or `None` when that node's dynamic-domain radius surely excludes
+    /// `target` (then no exact distance is computed).
+    #[inline]
+    fn nearest_in_domain(&mut self, target: &[f64]) -> Option<(usize, f64)> {
+        match self.index.nearest_unless_beyond(target, &self.domain) {
+            None => Some((0, f64::INFINITY)),
+            Some((_, None)) => None,
+            Some((i, Some(d2))) => Some((i as usize, d2.sqrt())),
+        }
+    }
+
     /// Configurations from the root to node `i`.
     fn branch(&self, mut i: usize) -> Vec<Vec<f64>> {
         let mut out = Vec::new();
@@ -205,8 +216,10 @@ impl Search<'_, '_, '_> {
     /// farther from their nearest node than its radius are rejected (`None`), and the radius
     /// shrinks where extensions fail and grows where they succeed (Yershova et al. 2005).
     fn extend(&mut self, tree: &mut Tree, target: &[f64]) -> Option<Extend> {
-        let (near, d) = self.nearest(tree, target);
         if let Some(dd) = self.domain {
+            let (near, d) = timed(self.timed, &mut self.phases.neighbour, || {
+                tree.nearest_in_domain(target)
+            })?;
             if d > tree.domain[near] {
                 return None;
             }
@@ -220,6 +233,7 @@ impl Search<'_, '_, '_> {
             }
             return Some(out);
         }
+        let (near, d) = self.nearest(tree, target);
         Some(self.extend_from(tree, near, d, target))
     }
 
