@@ -33,6 +33,9 @@ type Cell = u8;
 /// Slack of the `f32` queries, metres: far above their rounding at robot scale.
 const F32_SLACK: f32 = 1e-5;
 
+/// Slack of the `f64` contact confirmation, metres: far above its rounding.
+const TOUCH_SLACK: f64 = 1e-9;
+
 /// Cell coordinates (in cells, on each axis) a grid stays within, so that they and any point
 /// the batch checker reads them for are exact in `f32`; a map reaching farther is checked
 /// exactly there.
@@ -252,13 +255,27 @@ impl Clearance {
     /// it may (the map decides). A centre with a NaN coordinate is never clear.
     #[inline]
     pub fn clear(&self, p: [f64; 3], r: f64) -> bool {
-        let level = if r <= self.fine_radius {
-            &self.fine
-        } else {
-            &self.coarse
-        };
-        match level.clearance(p) {
-            Some(d) => d >= r,
+        self.decide(p, r) == Some(false)
+    }
+
+    /// Whether a ball at `p` with radius `r` touches an occupied voxel, when the grids can
+    /// tell: `Some(false)` when it surely touches none ([`Clearance::clear`]), `Some(true)` when
+    /// it surely touches one (the fine grid's distance plus the ball's offset from the cell
+    /// centre, and the stored rounding, fall short of `r`), `None` when the voxels must decide.
+    #[inline]
+    pub fn decide(&self, p: [f64; 3], r: f64) -> Option<bool> {
+        let fine = r <= self.fine_radius;
+        let level = if fine { &self.fine } else { &self.coarse };
+        match level.bounds(p) {
+            Some((d, off)) => {
+                if d - off >= r {
+                    Some(false)
+                } else if fine && d + off + level.res / STEPS + TOUCH_SLACK < r {
+                    Some(true)
+                } else {
+                    None
+                }
+            }
             None => {
                 // Beyond the padding: the occupied box bounds the distance. (A NaN coordinate
                 // makes the sum NaN: `d.max(0.0)` would drop it.)
@@ -272,7 +289,7 @@ impl Clearance {
                         }
                     })
                     .sum();
-                d2 >= r * r
+                (d2 >= r * r).then_some(false)
             }
         }
     }
@@ -540,11 +557,11 @@ impl Level {
         }
     }
 
-    /// A lower bound on the distance from `p` to the nearest occupied cell's cube (`None`
-    /// outside the grid): the cell's distance less `p`'s offset from the cell centre and a half
-    /// diagonal.
+    /// The stored distance of `p`'s cell to the nearest occupied cell's cube (rounded down)
+    /// and `p`'s offset from the cell centre, metres (`None` outside the grid): the distance
+    /// from `p` lies between their difference and their sum plus one stored unit.
     #[inline]
-    fn clearance(&self, p: [f64; 3]) -> Option<f64> {
+    fn bounds(&self, p: [f64; 3]) -> Option<(f64, f64)> {
         let k = p.map(|v| super::fast_floor(v * self.inv_res));
         let cell = [0, 1, 2].map(|a| k[a] as i64 - self.lo[a] as i64);
         if (0..3).any(|a| cell[a] < 0 || cell[a] >= self.dims[a] as i64) {
@@ -555,7 +572,7 @@ impl Level {
             .map(|a| (p[a] - (k[a] as f64 + 0.5) * self.res).powi(2))
             .sum::<f64>()
             .sqrt();
-        Some(d - off)
+        Some((d, off))
     }
 }
 
@@ -813,6 +830,24 @@ mod tests {
                 want |= (!clear as u32) << i;
             }
             prop_assert_eq!(c.unclear8(p, r, lanes), want);
+        }
+
+        /// Whatever the grids decide, the voxels decide alike.
+        #[test]
+        fn decided_balls_are_decided_alike_by_the_voxels(
+            voxels in prop::collection::vec(prop::array::uniform3(-12i32..12), 1..40),
+            queries in prop::collection::vec((prop::array::uniform3(-0.5f64..0.5), 0.0f64..0.3), 80),
+        ) {
+            let map = map_of(&voxels);
+            let c = Clearance::of(&map, 0.1).unwrap();
+            let mut decided = 0;
+            for (p, r) in queries {
+                if let Some(touches) = c.decide(p, r) {
+                    prop_assert_eq!(touches, map.sphere_touches_voxels(p, r), "{:?} r {}", p, r);
+                    decided += 1;
+                }
+            }
+            prop_assert!(decided > 0);
         }
 
         /// A contact the grid confirms is one the voxels confirm in a lane asked; otherwise the

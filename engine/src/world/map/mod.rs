@@ -427,10 +427,13 @@ impl OccupancyMap {
     /// clearance grid first, the voxels near the ball when it cannot tell.
     #[inline]
     pub fn sphere_collides(&self, c: [f64; 3], r: f64) -> bool {
-        if self.coarse.is_empty() || self.clearance().is_some_and(|g| g.clear(c, r)) {
+        if self.coarse.is_empty() {
             return false;
         }
-        self.sphere_touches_voxels(c, r)
+        match self.clearance().and_then(|g| g.decide(c, r)) {
+            Some(touches) => touches,
+            None => self.sphere_touches_voxels(c, r),
+        }
     }
 
     /// [`OccupancyMap::sphere_collides`] without the grid: the voxels near the ball, one by one.
