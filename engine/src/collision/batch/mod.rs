@@ -68,14 +68,17 @@ struct Joint8 {
     turn: Option<AxisTurn>,
 }
 
-/// The common joint, recognised once: a turn about a coordinate axis, behind an origin that
-/// only shifts, below a parent. Its pose is the parent's translated along at most one of the
-/// parent's axes (or by the origin's general shift), its rotation two columns turned: no
-/// decisions left per batch but which shift.
+/// The common joint, recognised once: a turn about a coordinate axis, behind an origin whose
+/// rotation is none or a signed permutation of the axes (quarter turns), below a parent. Its
+/// pose is the parent's translated along at most one of the parent's axes (or by the origin's
+/// general shift), its rotation the parent's columns, permuted, two of them turned: no
+/// decisions left per batch but which shift and which columns.
 #[derive(Clone, Copy)]
 struct AxisTurn {
     parent: usize,
     shift: Shift,
+    /// Per column of the origin's rotation: the parent's column it takes, and its sign.
+    columns: [(usize, f32); 3],
     /// The columns that turn.
     axes: [usize; 2],
     sign: f32,
@@ -219,8 +222,13 @@ impl BatchChecker {
                 Motion::Prismatic { axis: a, variable } => (Kind::Prismatic(axis(a)), *variable),
             };
             let parent = link.parent.map(|p| joints.frame[p]);
-            let turn = match (k, parent, origin.turn) {
-                (Kind::RevoluteAxis(axes, sign), Some(parent), Turn::Identity) => {
+            let columns = match origin.turn {
+                Turn::Identity => Some([(0, 1.0), (1, 1.0), (2, 1.0)]),
+                Turn::Axes(columns) => Some(columns),
+                Turn::General => None,
+            };
+            let turn = match (k, parent, columns) {
+                (Kind::RevoluteAxis(axes, sign), Some(parent), Some(columns)) => {
                     let nonzero: Vec<usize> = (0..3).filter(|&k| origin.t[k] != 0.0).collect();
                     let shift = match nonzero[..] {
                         [] => Shift::None,
@@ -230,6 +238,7 @@ impl BatchChecker {
                     Some(AxisTurn {
                         parent,
                         shift,
+                        columns,
                         axes,
                         sign,
                         variable: v,
@@ -614,7 +623,19 @@ impl BatchChecker {
             }
             let (s, c) = self.lanes[turn.variable].sin_cos();
             let s = s * F8::splat(turn.sign);
-            turn_columns(Some(&parent.r), &mut at.r, turn.axes, (s, c));
+            match origin.turn {
+                Turn::Identity => turn_columns(Some(&parent.r), &mut at.r, turn.axes, (s, c)),
+                // As `Origin::rotate` permutes them, then turned in place.
+                _ => {
+                    for row in 0..3 {
+                        for (j, &(i, sign)) in turn.columns.iter().enumerate() {
+                            let v = parent.r[row * 3 + i];
+                            at.r[row * 3 + j] = if sign > 0.0 { v } else { F8::splat(0.0) - v };
+                        }
+                    }
+                    turn_columns(None, &mut at.r, turn.axes, (s, c));
+                }
+            }
             return;
         }
         let parent = match joint.parent {
