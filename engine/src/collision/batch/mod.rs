@@ -625,14 +625,9 @@ impl BatchChecker {
             let s = s * F8::splat(turn.sign);
             match origin.turn {
                 Turn::Identity => turn_columns(Some(&parent.r), &mut at.r, turn.axes, (s, c)),
-                // As `Origin::rotate` permutes them, then turned in place.
+                // The parent's columns permuted by the quarter turns, then turned in place.
                 _ => {
-                    for row in 0..3 {
-                        for (j, &(i, sign)) in turn.columns.iter().enumerate() {
-                            let v = parent.r[row * 3 + i];
-                            at.r[row * 3 + j] = if sign > 0.0 { v } else { F8::splat(0.0) - v };
-                        }
-                    }
+                    permute_columns(&parent.r, &mut at.r, turn.columns);
                     turn_columns(None, &mut at.r, turn.axes, (s, c));
                 }
             }
@@ -973,15 +968,20 @@ impl Origin {
                     out[row * 3..row * 3 + 3].copy_from_slice(&r);
                 }
             }
-            Turn::Axes(axes) => {
-                for row in 0..3 {
-                    for (j, &(i, sign)) in axes.iter().enumerate() {
-                        let v = a[row * 3 + i];
-                        out[row * 3 + j] = if sign > 0.0 { v } else { F8::splat(0.0) - v };
-                    }
-                }
-            }
+            Turn::Axes(axes) => permute_columns(a, out, axes),
             Turn::General => *out = Pose8::splat(self.r, [0.0; 3]).r_after(a),
+        }
+    }
+}
+
+/// `out` = the rotation `a` times a signed permutation: column `j` of `out` is column
+/// `columns[j].0` of `a`, negated when `columns[j].1` is negative.
+#[inline(always)]
+fn permute_columns(a: &[F8; 9], out: &mut [F8; 9], columns: [(usize, f32); 3]) {
+    for row in 0..3 {
+        for (j, &(i, sign)) in columns.iter().enumerate() {
+            let v = a[row * 3 + i];
+            out[row * 3 + j] = if sign > 0.0 { v } else { F8::splat(0.0) - v };
         }
     }
 }
