@@ -28,7 +28,9 @@ const NONE: u32 = u32::MAX;
 
 /// Relative and absolute slack (squared distance) between the lanes' `f32` distance and the
 /// exact one, far above their rounding: coordinates of a few radians or metres carry errors of
-/// ~1e-7 each, and eight squared differences of a few units sum to errors of ~1e-5.
+/// ~1e-7 each, and eight squared differences of a few units sum to errors of ~1e-5. (Joints
+/// ranging over hundreds of units could round past it; the only effect would be a sample at a
+/// node's dynamic-domain radius taken as beyond it: a sampling choice, never a verdict.)
 const APPROX_SLACK: f64 = 1e-3;
 
 /// Coordinate of an empty slot: its distance to any query is huge but finite in `f32`.
@@ -240,8 +242,9 @@ impl NearestIndex {
         }
     }
 
-    /// The leaf and slot of the point nearest to the query, down the tree of buckets: nodes
-    /// nearest box first, skipping any box farther than the best point found.
+    /// The leaf and slot of the point nearest to the query, and its squared distance in the
+    /// lanes' `f32`, down the tree of buckets: nodes nearest box first, skipping any box
+    /// farther than the best point found.
     fn walk(&mut self) -> (usize, usize, f32) {
         let mut stack = std::mem::take(&mut self.stack);
         stack.clear();

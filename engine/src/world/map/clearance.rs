@@ -33,8 +33,8 @@ type Cell = u8;
 /// Slack of the `f32` queries, metres: far above their rounding at robot scale.
 const F32_SLACK: f32 = 1e-5;
 
-/// Slack of the `f64` contact confirmation, metres: far above its rounding.
-const TOUCH_SLACK: f64 = 1e-9;
+/// Slack of the `f64` queries, metres: far above their rounding.
+const F64_SLACK: f64 = 1e-9;
 
 /// Cell coordinates (in cells, on each axis) a grid stays within, so that they and any point
 /// the batch checker reads them for are exact in `f32`; a map reaching farther is checked
@@ -268,9 +268,9 @@ impl Clearance {
         let level = if fine { &self.fine } else { &self.coarse };
         match level.bounds(p) {
             Some((d, off)) => {
-                if d - off >= r {
+                if d - off >= r + F64_SLACK {
                     Some(false)
-                } else if fine && d + off + level.res / STEPS + TOUCH_SLACK < r {
+                } else if fine && d + off + level.res / STEPS + F64_SLACK < r {
                     Some(true)
                 } else {
                     None
