@@ -77,6 +77,18 @@ fn delta(continuous: bool, a: f64, b: f64) -> f64 {
     }
 }
 
+/// The value a fraction `t` of the way from `a` to `b`, the short way round (and wrapped) on a
+/// continuous joint.
+#[inline(always)]
+fn between(continuous: bool, a: f64, b: f64, t: f64) -> f64 {
+    let v = a + t * delta(continuous, a, b);
+    if continuous {
+        wrap_angle(v)
+    } else {
+        v
+    }
+}
+
 /// [`wrap_angle`] of an angle more than a turn outside `[-π, π)` (or not finite).
 #[cold]
 #[inline(never)]
@@ -227,9 +239,7 @@ impl Robot {
             _mm256_storeu_pd(out.as_mut_ptr().add(j), v);
         }
         for i in four..n {
-            let continuous = wraps[i] != 0;
-            let v = a[i] + t * delta(continuous, a[i], b[i]);
-            out[i] = if continuous { wrap_angle(v) } else { v };
+            out[i] = between(wraps[i] != 0, a[i], b[i], t);
         }
         bad == 0
     }
@@ -239,9 +249,7 @@ impl Robot {
         let n = a.len();
         let (b, out, vars) = (&b[..n], &mut out[..n], &self.variables[..n]);
         for i in 0..n {
-            let continuous = vars[i].continuous;
-            let v = a[i] + t * delta(continuous, a[i], b[i]);
-            out[i] = if continuous { wrap_angle(v) } else { v };
+            out[i] = between(vars[i].continuous, a[i], b[i], t);
         }
     }
 
@@ -289,7 +297,7 @@ impl Robot {
 }
 
 /// The joint limits, and which joints wrap, as flat arrays for the vector paths (the uniform
-/// sampler, joint differences, interpolation).
+/// sampler, interpolation).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub(crate) struct LimitBox {
     /// Per variable: its lower limit.

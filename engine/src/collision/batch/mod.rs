@@ -77,8 +77,9 @@ struct Joint8 {
 struct AxisTurn {
     parent: usize,
     shift: Shift,
-    /// Per column of the origin's rotation: the parent's column it takes, and its sign.
-    columns: [(usize, f32); 3],
+    /// Per column of the origin's rotation: the parent's column it takes, and its sign
+    /// (`None`: the origin does not rotate).
+    columns: Option<[(usize, f32); 3]>,
     /// The columns that turn.
     axes: [usize; 2],
     sign: f32,
@@ -223,8 +224,8 @@ impl BatchChecker {
             };
             let parent = link.parent.map(|p| joints.frame[p]);
             let columns = match origin.turn {
-                Turn::Identity => Some([(0, 1.0), (1, 1.0), (2, 1.0)]),
-                Turn::Axes(columns) => Some(columns),
+                Turn::Identity => Some(None),
+                Turn::Axes(columns) => Some(Some(columns)),
                 Turn::General => None,
             };
             let turn = match (k, parent, columns) {
@@ -610,7 +611,7 @@ impl BatchChecker {
         let origin = &joint.origin;
         let (done, rest) = self.poses.split_at_mut(l);
         let at = &mut rest[0];
-        if let Some(turn) = joint.turn {
+        if let Some(turn) = &joint.turn {
             let parent = &done[turn.parent];
             // The same arithmetic as `Origin::translate` (zero components skipped).
             match turn.shift {
@@ -623,11 +624,11 @@ impl BatchChecker {
             }
             let (s, c) = self.lanes[turn.variable].sin_cos();
             let s = s * F8::splat(turn.sign);
-            match origin.turn {
-                Turn::Identity => turn_columns(Some(&parent.r), &mut at.r, turn.axes, (s, c)),
+            match turn.columns {
+                None => turn_columns(Some(&parent.r), &mut at.r, turn.axes, (s, c)),
                 // The parent's columns permuted by the quarter turns, then turned in place.
-                _ => {
-                    permute_columns(&parent.r, &mut at.r, turn.columns);
+                Some(columns) => {
+                    permute_columns(&parent.r, &mut at.r, columns);
                     turn_columns(None, &mut at.r, turn.axes, (s, c));
                 }
             }
