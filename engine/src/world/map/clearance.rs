@@ -739,6 +739,11 @@ mod tests {
         // Not in a lane not asked, nor by a ball that only grazes the voxel.
         assert_eq!(c.sphere8(p, 2.0 * res, 0), Some(0));
         assert!(c.sphere8(p, 0.4 * res, ALL_LANES).is_some());
+        // The scalar query likewise.
+        let q = map.voxel_center([0, 0, 0]).map(|v| v + 0.004);
+        let res = f64::from(res);
+        assert_eq!(c.decide(q, 2.0 * res), Some(true));
+        assert_eq!(c.decide(q, 0.4 * res), None);
     }
 
     #[test]
@@ -771,19 +776,22 @@ mod tests {
 
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(64))]
-        /// Whatever the grid clears, the exact test finds clear too.
+        /// Whatever the grids decide (clear, or surely touching), the voxels decide alike.
         #[test]
-        fn a_cleared_ball_touches_no_occupied_voxel(
+        fn grid_verdicts_are_the_voxels_own(
             voxels in prop::collection::vec(prop::array::uniform3(-12i32..12), 1..40),
-            queries in prop::collection::vec((prop::array::uniform3(-0.5f64..0.5), 0.0f64..0.3), 50),
+            queries in prop::collection::vec((prop::array::uniform3(-0.5f64..0.5), 0.0f64..0.3), 80),
         ) {
             let map = map_of(&voxels);
             let c = Clearance::of(&map, 0.1).unwrap();
+            let mut decided = [0; 2];
             for (p, r) in queries {
-                if c.clear(p, r) {
-                    prop_assert!(!map.sphere_touches_voxels(p, r), "cleared {p:?} r {r}");
+                if let Some(touches) = c.decide(p, r) {
+                    prop_assert_eq!(touches, map.sphere_touches_voxels(p, r), "{:?} r {}", p, r);
+                    decided[touches as usize] += 1;
                 }
             }
+            prop_assert!(decided[0] > 0, "nothing cleared");
             // Every cell holds the brute-force distance to the cubes (rounded down, saturated).
             let g = &c.fine;
             for (k, cell) in g.cells() {
@@ -830,24 +838,6 @@ mod tests {
                 want |= (!clear as u32) << i;
             }
             prop_assert_eq!(c.unclear8(p, r, lanes), want);
-        }
-
-        /// Whatever the grids decide, the voxels decide alike.
-        #[test]
-        fn decided_balls_are_decided_alike_by_the_voxels(
-            voxels in prop::collection::vec(prop::array::uniform3(-12i32..12), 1..40),
-            queries in prop::collection::vec((prop::array::uniform3(-0.5f64..0.5), 0.0f64..0.3), 80),
-        ) {
-            let map = map_of(&voxels);
-            let c = Clearance::of(&map, 0.1).unwrap();
-            let mut decided = 0;
-            for (p, r) in queries {
-                if let Some(touches) = c.decide(p, r) {
-                    prop_assert_eq!(touches, map.sphere_touches_voxels(p, r), "{:?} r {}", p, r);
-                    decided += 1;
-                }
-            }
-            prop_assert!(decided > 0);
         }
 
         /// A contact the grid confirms is one the voxels confirm in a lane asked; otherwise the
