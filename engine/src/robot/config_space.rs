@@ -257,8 +257,8 @@ impl Robot {
     #[inline]
     pub fn sample_uniform<R: Rng + ?Sized>(&self, rng: &mut R, out: &mut [f64]) {
         for (v, var) in out.iter_mut().zip(&self.variables) {
-            // A 53-bit fraction scaled into the limits: a third of `random_range`'s work, which
-            // the planner does on every iteration. Rounding may give the upper limit itself.
+            // A 53-bit fraction scaled into the limits: a third of `random_range`'s work (the
+            // experience samplers draw this way often). Rounding may give the upper limit.
             let u: f64 = rng.random();
             *v = var.lower + (var.upper - var.lower) * u;
         }

@@ -137,8 +137,8 @@ pub struct Robot {
     pub(crate) group_name: String,
     pub(crate) links: Vec<Link>,
     pub(crate) variables: Vec<Variable>,
-    /// The variables' limits, flat: derived from `variables` where the robot is built (see
-    /// [`config_space::LimitBox`]).
+    /// The variables' limits and which of them wrap, flat, for the vector paths: derived from
+    /// `variables` where the robot is built (see [`config_space::LimitBox`]).
     pub(crate) limit_box: config_space::LimitBox,
     /// Per variable: velocity, acceleration and jerk limits.
     pub(crate) limits: Vec<limits::JointLimits>,
