@@ -1,7 +1,9 @@
 //! Eight `f32` lanes and the arithmetic the batch checker needs, written as plain loops over
 //! arrays: inside a function compiled for AVX2 each operation is one vector instruction, and
-//! elsewhere the compiler uses what the target has (SSE2 pairs, NEON). No fused multiply-add,
-//! so every path computes the same values.
+//! elsewhere the compiler uses what the target has (SSE2 pairs, NEON). Products added to a
+//! sum are fused multiply-adds ([`F8::mul_add`]), rounded once: one instruction under AVX2
+//! (whose code path needs FMA too, as every AVX2 CPU has it) and NEON, a correctly rounded
+//! library call on a baseline x86-64, so every path computes the same values.
 
 use std::ops::{Add, Mul, Sub};
 
@@ -11,11 +13,12 @@ pub const LANES: usize = 8;
 /// Every lane, as bits (the form lane masks take).
 pub const ALL_LANES: u32 = (1 << LANES) - 1;
 
-/// True when the CPU runs AVX2 (the code paths compiled for it are then chosen at run time).
+/// True when the CPU runs AVX2 and FMA (the code paths compiled for them are then chosen at
+/// run time).
 pub fn has_avx2() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
-        std::is_x86_feature_detected!("avx2")
+        std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
@@ -43,6 +46,19 @@ impl F8 {
     #[inline(always)]
     fn map(self, f: impl Fn(f32) -> f32) -> F8 {
         F8(std::array::from_fn(|k| f(self.0[k])))
+    }
+
+    /// Lane-wise `self · a + b`, rounded once (a fused multiply-add: one instruction where the
+    /// CPU has FMA, a library call elsewhere; the same value either way).
+    #[inline(always)]
+    pub fn mul_add(self, a: F8, b: F8) -> F8 {
+        F8(std::array::from_fn(|k| self.0[k].mul_add(a.0[k], b.0[k])))
+    }
+
+    /// Lane-wise `self · a − b`, rounded once (see [`F8::mul_add`]).
+    #[inline(always)]
+    pub fn mul_sub(self, a: F8, b: F8) -> F8 {
+        F8(std::array::from_fn(|k| self.0[k].mul_add(a.0[k], -b.0[k])))
     }
 
     /// Lane-wise minimum.
@@ -141,16 +157,25 @@ impl F8 {
         for k in 0..LANES {
             let x = self.0[k];
             let n = (x * TWO_OVER_PI).round_ties_even();
-            let r = (x - n * PI_2_HI) - n * PI_2_LO;
+            let r = n.mul_add(-PI_2_LO, n.mul_add(-PI_2_HI, x));
             let r2 = r * r;
-            let sin_r = r
-                * (1.0
-                    + r2 * (-1.0 / 6.0
-                        + r2 * (1.0 / 120.0 + r2 * (-1.0 / 5040.0 + r2 * (1.0 / 362_880.0)))));
-            let cos_r = 1.0
-                + r2 * (-0.5
-                    + r2 * (1.0 / 24.0
-                        + r2 * (-1.0 / 720.0 + r2 * (1.0 / 40_320.0 + r2 * (-1.0 / 3_628_800.0)))));
+            let sin_r = r * r2.mul_add(
+                r2.mul_add(
+                    r2.mul_add(r2.mul_add(1.0 / 362_880.0, -1.0 / 5040.0), 1.0 / 120.0),
+                    -1.0 / 6.0,
+                ),
+                1.0,
+            );
+            let cos_r = r2.mul_add(
+                r2.mul_add(
+                    r2.mul_add(
+                        r2.mul_add(r2.mul_add(-1.0 / 3_628_800.0, 1.0 / 40_320.0), -1.0 / 720.0),
+                        1.0 / 24.0,
+                    ),
+                    -0.5,
+                ),
+                1.0,
+            );
             // Quadrant n mod 4, read from the low bits of n + 1.5·2²³ (whose last mantissa bits
             // are n's in two's complement), in integer lanes: odd quadrants swap sine and
             // cosine; sine changes sign in quadrants 2 and 3, cosine in 1 and 2 (its bit 1
@@ -285,9 +310,9 @@ impl Pose8 {
     pub fn apply(&self, p: [F8; 3]) -> [F8; 3] {
         let a = &self.r;
         [
-            a[0] * p[0] + a[1] * p[1] + a[2] * p[2] + self.t[0],
-            a[3] * p[0] + a[4] * p[1] + a[5] * p[2] + self.t[1],
-            a[6] * p[0] + a[7] * p[1] + a[8] * p[2] + self.t[2],
+            a[0].mul_add(p[0], a[1].mul_add(p[1], a[2].mul_add(p[2], self.t[0]))),
+            a[3].mul_add(p[0], a[4].mul_add(p[1], a[5].mul_add(p[2], self.t[1]))),
+            a[6].mul_add(p[0], a[7].mul_add(p[1], a[8].mul_add(p[2], self.t[2]))),
         ]
     }
 
@@ -297,9 +322,9 @@ impl Pose8 {
         let a = &self.r;
         let d = [p[0] - self.t[0], p[1] - self.t[1], p[2] - self.t[2]];
         [
-            a[0] * d[0] + a[3] * d[1] + a[6] * d[2],
-            a[1] * d[0] + a[4] * d[1] + a[7] * d[2],
-            a[2] * d[0] + a[5] * d[1] + a[8] * d[2],
+            a[0].mul_add(d[0], a[3].mul_add(d[1], a[6] * d[2])),
+            a[1].mul_add(d[0], a[4].mul_add(d[1], a[7] * d[2])),
+            a[2].mul_add(d[0], a[5].mul_add(d[1], a[8] * d[2])),
         ]
     }
 
@@ -319,7 +344,7 @@ impl Pose8 {
     }
 
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
+    #[target_feature(enable = "avx2,fma")]
     #[inline]
     unsafe fn apply_const_avx2(&self, c: [f32; 3]) -> [F8; 3] {
         use std::arch::x86_64::*;
@@ -340,13 +365,7 @@ impl Pose8 {
                     _mm256_load_ps(self.t[i].0.as_ptr()),
                 )
             };
-            let v = _mm256_add_ps(
-                _mm256_add_ps(
-                    _mm256_add_ps(_mm256_mul_ps(a0, x), _mm256_mul_ps(a1, y)),
-                    _mm256_mul_ps(a2, z),
-                ),
-                t,
-            );
+            let v = _mm256_fmadd_ps(a0, x, _mm256_fmadd_ps(a1, y, _mm256_fmadd_ps(a2, z, t)));
             // SAFETY: as above.
             unsafe { _mm256_store_ps(o.0.as_mut_ptr(), v) };
         }
@@ -359,9 +378,9 @@ impl Pose8 {
         let a = &self.r;
         let (x, y, z) = (F8::splat(c[0]), F8::splat(c[1]), F8::splat(c[2]));
         [
-            a[0] * x + a[1] * y + a[2] * z + self.t[0],
-            a[3] * x + a[4] * y + a[5] * z + self.t[1],
-            a[6] * x + a[7] * y + a[8] * z + self.t[2],
+            a[0].mul_add(x, a[1].mul_add(y, a[2].mul_add(z, self.t[0]))),
+            a[3].mul_add(x, a[4].mul_add(y, a[5].mul_add(z, self.t[1]))),
+            a[6].mul_add(x, a[7].mul_add(y, a[8].mul_add(z, self.t[2]))),
         ]
     }
 }
@@ -457,7 +476,10 @@ unsafe fn boxes_overlapping_avx2(
 /// Entry `(i, j)` of the product `a · b` of row-major rotations.
 #[inline(always)]
 fn dot3(a: &[F8; 9], b: &[F8; 9], i: usize, j: usize) -> F8 {
-    a[i * 3] * b[j] + a[i * 3 + 1] * b[3 + j] + a[i * 3 + 2] * b[6 + j]
+    a[i * 3].mul_add(
+        b[j],
+        a[i * 3 + 1].mul_add(b[3 + j], a[i * 3 + 2] * b[6 + j]),
+    )
 }
 
 #[cfg(test)]

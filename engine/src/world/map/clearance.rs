@@ -347,7 +347,7 @@ impl Clearance {
                 within[i] = (within[i] << BRICK_BITS) | (k[i] & (BRICK as u32 - 1));
             }
             let o = pa - (f + F8::splat(0.5)) * res;
-            off2 = off2 + o * o;
+            off2 = o.mul_add(o, off2);
         }
         let d = F8(std::array::from_fn(|i| {
             g.bricks[brick[i] as usize][within[i] as usize] as f32
