@@ -166,6 +166,12 @@ pub fn distance(a: &Placed, b: &Placed) -> f64 {
     run(&Frame::of(a), &Frame::of(b), f64::INFINITY).0
 }
 
+/// The least and greatest of `n · x` over the points `x` of `a`.
+pub fn extent_along(a: &Placed, n: &V) -> (f64, f64) {
+    let f = Frame::of(a);
+    (n.dot(&f.support(&-n)), n.dot(&f.support(n)))
+}
+
 /// True when `a` and `b` are more than `gap` apart (stops as soon as that is certain).
 pub fn separated(a: &Placed, b: &Placed, gap: f64) -> bool {
     separated_along(a, b, gap, &mut V::zeros())

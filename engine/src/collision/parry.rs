@@ -157,6 +157,7 @@ pub(crate) fn convex_distance(a: &Convex, pose_a: &Pose, b: &Convex, pose_b: &Po
 pub(crate) const TOUCH: f64 = 1e-9;
 
 /// True when two convex shapes at world poses touch or overlap.
+#[cfg(test)]
 pub(crate) fn convex_touch(a: &Convex, pose_a: &Pose, b: &Convex, pose_b: &Pose) -> bool {
     convex_touch_along(a, pose_a, b, pose_b, &mut Vector3::zeros())
 }
