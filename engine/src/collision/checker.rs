@@ -472,7 +472,12 @@ pub fn motion_steps(robot: &Robot, a: &[f64], b: &[f64], resolution: f64) -> usi
 /// [`motion_steps`] of a motion `distance` long.
 #[inline]
 pub fn steps_over(distance: f64, resolution: f64) -> usize {
-    (distance / resolution - 1e-9).ceil().max(0.0) as usize
+    // `ceil` without its library call (the baseline x86-64 has no rounding instruction): the
+    // saturating conversion truncates, and a fraction left over adds one. Not finite or not
+    // positive gives 0, as `ceil().max(0.0)` did.
+    let x = distance / resolution - 1e-9;
+    let n = x as usize;
+    n.saturating_add(usize::from((n as f64) < x))
 }
 
 /// Checks the states strictly between `a` and `b` at `resolution` with `valid`, coarse to
@@ -572,7 +577,23 @@ fn dist2(a: [f64; 3], b: [f64; 3]) -> f64 {
 
 #[cfg(test)]
 mod tests {
-    use super::bisection_order;
+    use super::{bisection_order, steps_over};
+
+    #[test]
+    fn steps_over_rounds_up_as_ceil_does() {
+        let ceil = |d: f64, r: f64| (d / r - 1e-9).ceil().max(0.0) as usize;
+        let cases = [0.0, 1e-12, 0.03125, 0.031250001, 0.75, 1.0, 3.7, 1e6, -2.0];
+        for d in cases
+            .into_iter()
+            .chain((0..2000).map(|i| f64::from(i) * 0.013))
+        {
+            for r in [1.0 / 32.0, 0.05, 0.01, 1.0] {
+                assert_eq!(steps_over(d, r), ceil(d, r), "{d} {r}");
+            }
+        }
+        assert_eq!(steps_over(f64::NAN, 0.1), 0);
+        assert_eq!(steps_over(f64::INFINITY, 0.1), usize::MAX);
+    }
 
     #[test]
     fn bisection_order_visits_every_interior_step_once_coarse_to_fine() {
