@@ -599,6 +599,35 @@ mod tests {
         })
     }
 
+    /// Walks 30 straight motions of 20 steps between random configurations (where the
+    /// remembered separating axes settle most tests) and checks that `sut` names the contact
+    /// the oracle does at every step; returns how many steps were free, touched an object
+    /// (or the map) and touched the robot itself.
+    fn walk_against_oracle(
+        sut: &mut ExactChecker,
+        rng: &mut PlannerRng,
+        label: &str,
+    ) -> [usize; 3] {
+        let robot = sut.robot;
+        let (mut a, mut b, mut q) = (robot.middle(), robot.middle(), robot.middle());
+        let mut seen = [0usize; 3];
+        for step in 0..600 {
+            if step % 20 == 0 {
+                a.copy_from_slice(&b);
+                robot.sample_uniform(rng, &mut b);
+            }
+            robot.interpolate(&a, &b, (step % 20) as f64 / 20.0, &mut q);
+            let expected = oracle(sut, &q);
+            assert_eq!(sut.contact(&q), expected, "{label} {q:?}");
+            seen[match expected {
+                None => 0,
+                Some(Contact::Object { .. }) => 1,
+                Some(Contact::SelfCollision { .. }) => 2,
+            }] += 1;
+        }
+        seen
+    }
+
     /// Along random walks of short steps (where the remembered separating axes settle most
     /// tests) and across jumps, among 12 or 70 objects (past the 64 the link screen tracks),
     /// the checker names the contact the oracle does.
@@ -635,22 +664,7 @@ mod tests {
             let env = Environment::from_objects(objects.collect::<Vec<_>>()).unwrap();
             let mut sut = ExactChecker::new(&robot, &env);
             assert_eq!(sut.static_contact(), None);
-            let (mut a, mut b, mut q) = (robot.middle(), robot.middle(), robot.middle());
-            let mut seen = [0usize; 3];
-            for step in 0..600 {
-                if step % 20 == 0 {
-                    a.copy_from_slice(&b);
-                    robot.sample_uniform(&mut rng, &mut b);
-                }
-                robot.interpolate(&a, &b, (step % 20) as f64 / 20.0, &mut q);
-                let expected = oracle(&sut, &q);
-                assert_eq!(sut.contact(&q), expected, "{name} {count} {q:?}");
-                seen[match expected {
-                    None => 0,
-                    Some(Contact::Object { .. }) => 1,
-                    Some(Contact::SelfCollision { .. }) => 2,
-                }] += 1;
-            }
+            let seen = walk_against_oracle(&mut sut, &mut rng, &format!("{name} {count}"));
             assert!(seen.iter().all(|&n| n > 0), "{name} {count}: {seen:?}");
         }
     }
@@ -691,22 +705,7 @@ mod tests {
             let mut sut = ExactChecker::new(&robot, &env);
             assert_eq!(sut.static_contact(), None);
             let mut rng = PlannerRng::seed_from_u64(9);
-            let (mut a, mut b, mut q) = (robot.middle(), robot.middle(), robot.middle());
-            let (mut free, mut touching) = (0, 0);
-            for step in 0..600 {
-                if step % 20 == 0 {
-                    a.copy_from_slice(&b);
-                    robot.sample_uniform(&mut rng, &mut b);
-                }
-                robot.interpolate(&a, &b, (step % 20) as f64 / 20.0, &mut q);
-                let expected = oracle(&sut, &q);
-                assert_eq!(sut.contact(&q), expected, "{name} {q:?}");
-                match expected {
-                    None => free += 1,
-                    Some(Contact::Object { .. }) => touching += 1,
-                    Some(_) => {}
-                }
-            }
+            let [free, touching, _] = walk_against_oracle(&mut sut, &mut rng, name);
             assert!(free > 0 && touching > 0, "{name}: {free} {touching}");
         }
     }
