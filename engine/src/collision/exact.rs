@@ -345,12 +345,13 @@ impl<'a> ExactChecker<'a> {
         let names = self.robot.links();
         let n_objects = self.objects.len();
         let (object_axes, pair_axes) = axes.split_at_mut(model.part_count() * n_objects);
-        // Squared distance from a sphere's centre to an object's box.
+        // Squared distance from a sphere's centre to an object's box, in plain comparisons
+        // (a `max` of each: nalgebra's generic `sup` took several instructions).
         let out2 = |obj: &ExactObject, c: &Vector3<f64>| {
-            (obj.lo - c)
-                .sup(&(c - obj.hi))
-                .sup(&Vector3::zeros())
-                .norm_squared()
+            let max = |a: f64, b: f64| if a > b { a } else { b };
+            let d = |k: usize| max(max(obj.lo[k] - c[k], c[k] - obj.hi[k]), 0.0);
+            let (x, y, z) = (d(0), d(1), d(2));
+            x * x + y * y + z * z
         };
         for &li in links {
             // The objects the link's bounding sphere reaches (all past the 64th), which hold
