@@ -98,6 +98,8 @@ struct Search<'c, 'a, 's> {
     range: f64,
     domain: Option<DynamicDomain>,
     scratch: Vec<f64>,
+    /// The last extension's step per joint (see [`Robot::step_towards`]).
+    step: Vec<f64>,
     stats: &'s mut PlanStats,
     phases: Phases,
     /// True on the iterations whose sampling, neighbour queries and checks are timed (see
@@ -244,12 +246,20 @@ impl Search<'_, '_, '_> {
         if reached {
             self.scratch.copy_from_slice(target);
         } else {
+            // The step is kept: the edge's states follow from it without taking the joints'
+            // differences again.
+            let t = self.range / d;
             self.robot
-                .interpolate(near_q, target, self.range / d, &mut self.scratch);
+                .step_towards(near_q, target, t, &mut self.scratch, &mut self.step);
         }
-        let (checker, scratch) = (&mut *self.checker, &self.scratch);
+        let (checker, scratch, step, range) =
+            (&mut *self.checker, &self.scratch, &self.step, self.range);
         let ok = timed(self.timed, &mut self.phases.check, || {
-            checker.reach_valid(tree.node(near), scratch)
+            if reached {
+                checker.reach_valid(tree.node(near), scratch)
+            } else {
+                checker.step_valid(tree.node(near), scratch, step, range)
+            }
         });
         if !ok {
             return Extend::Trapped;
@@ -314,6 +324,7 @@ pub(crate) fn search(
         range: params.range,
         domain: params.dynamic_domain,
         scratch: vec![0.0; dof],
+        step: vec![0.0; dof],
         checker,
         stats,
         phases: Phases {

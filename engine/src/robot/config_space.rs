@@ -78,10 +78,16 @@ fn delta(continuous: bool, a: f64, b: f64) -> f64 {
 }
 
 /// The value a fraction `t` of the way from `a` to `b`, the short way round (and wrapped) on a
-/// continuous joint.
+/// continuous joint, and the step taken from `a` (unwrapped).
 #[inline(always)]
-fn between(continuous: bool, a: f64, b: f64, t: f64) -> f64 {
-    let v = a + t * delta(continuous, a, b);
+fn stepped(continuous: bool, a: f64, b: f64, t: f64) -> (f64, f64) {
+    let s = t * delta(continuous, a, b);
+    (wrapped(continuous, a + s), s)
+}
+
+/// `v` wrapped on a continuous joint.
+#[inline(always)]
+fn wrapped(continuous: bool, v: f64) -> f64 {
     if continuous {
         wrap_angle(v)
     } else {
@@ -204,14 +210,34 @@ impl Robot {
     /// Writes the configuration a fraction `t` of the way from `a` to `b` into `out`.
     #[inline]
     pub fn interpolate(&self, a: &[f64], b: &[f64], t: f64, out: &mut [f64]) {
+        self.interpolate_stepping::<false>(a, b, t, out, &mut []);
+    }
+
+    /// [`Robot::interpolate`], also writing the step from `a` per joint into `step`: `t` times
+    /// the joint's difference ([`Robot::joint_delta`]), the value `out` adds to `a` before
+    /// wrapping (so `a + step` is `out`, but for whole turns on continuous joints).
+    #[inline]
+    pub fn step_towards(&self, a: &[f64], b: &[f64], t: f64, out: &mut [f64], step: &mut [f64]) {
+        self.interpolate_stepping::<true>(a, b, t, out, step);
+    }
+
+    #[inline(always)]
+    fn interpolate_stepping<const STEP: bool>(
+        &self,
+        a: &[f64],
+        b: &[f64],
+        t: f64,
+        out: &mut [f64],
+        step: &mut [f64],
+    ) {
         #[cfg(target_arch = "x86_64")]
         if self.limit_box.avx2 {
             // SAFETY: the CPU has AVX2 (checked when the robot was built).
-            if unsafe { self.interpolate_avx2(a, b, t, out) } {
+            if unsafe { self.interpolate_avx2::<STEP>(a, b, t, out, step) } {
                 return;
             }
         }
-        self.interpolate_scalar(a, b, t, out)
+        self.interpolate_scalar::<STEP>(a, b, t, out, step)
     }
 
     /// [`Robot::interpolate`] four joints per vector instruction, with the same arithmetic;
@@ -219,10 +245,18 @@ impl Robot {
     /// scalar path.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn interpolate_avx2(&self, a: &[f64], b: &[f64], t: f64, out: &mut [f64]) -> bool {
+    unsafe fn interpolate_avx2<const STEP: bool>(
+        &self,
+        a: &[f64],
+        b: &[f64],
+        t: f64,
+        out: &mut [f64],
+        step: &mut [f64],
+    ) -> bool {
         use std::arch::x86_64::*;
         let n = a.len();
         let (b, out, wraps) = (&b[..n], &mut out[..n], &self.limit_box.wraps[..n]);
+        let step = if STEP { &mut step[..n] } else { step };
         let four = n / 4 * 4;
         let tt = _mm256_set1_pd(t);
         let mut bad = 0;
@@ -234,22 +268,41 @@ impl Robot {
             );
             let m = _mm256_castsi256_pd(_mm256_loadu_si256(wraps.as_ptr().add(j).cast()));
             let (d, outside_d) = wrap_where_avx2(_mm256_sub_pd(vb, va), m);
-            let (v, outside_v) = wrap_where_avx2(_mm256_add_pd(va, _mm256_mul_pd(tt, d)), m);
+            let s = _mm256_mul_pd(tt, d);
+            let (v, outside_v) = wrap_where_avx2(_mm256_add_pd(va, s), m);
             bad |= outside_d | outside_v;
             _mm256_storeu_pd(out.as_mut_ptr().add(j), v);
+            if STEP {
+                _mm256_storeu_pd(step.as_mut_ptr().add(j), s);
+            }
         }
         for i in four..n {
-            out[i] = between(wraps[i] != 0, a[i], b[i], t);
+            let (v, s) = stepped(wraps[i] != 0, a[i], b[i], t);
+            out[i] = v;
+            if STEP {
+                step[i] = s;
+            }
         }
         bad == 0
     }
 
     #[inline(always)]
-    fn interpolate_scalar(&self, a: &[f64], b: &[f64], t: f64, out: &mut [f64]) {
+    fn interpolate_scalar<const STEP: bool>(
+        &self,
+        a: &[f64],
+        b: &[f64],
+        t: f64,
+        out: &mut [f64],
+        step: &mut [f64],
+    ) {
         let n = a.len();
         let (b, out, vars) = (&b[..n], &mut out[..n], &self.variables[..n]);
         for i in 0..n {
-            out[i] = between(vars[i].continuous, a[i], b[i], t);
+            let (v, s) = stepped(vars[i].continuous, a[i], b[i], t);
+            out[i] = v;
+            if STEP {
+                step[i] = s;
+            }
         }
     }
 
@@ -413,6 +466,9 @@ mod tests {
             let n = sut.dof();
             let (mut a, mut b) = (vec![0.0; n], vec![0.0; n]);
             let (mut fast, mut scalar) = (vec![0.0; n], vec![0.0; n]);
+            let (mut stepped, mut step, mut scalar_step) =
+                (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+            let bits = |v: &[f64]| v.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
             for round in 0..20_000 {
                 // Mostly within the limits, sometimes a few turns out (the scalar fallback).
                 let far = if round % 10 == 0 { 12.0 } else { 0.0 };
@@ -424,12 +480,21 @@ mod tests {
                 }
                 let t = rng.random::<f64>();
                 sut.interpolate(&a, &b, t, &mut fast);
-                sut.interpolate_scalar(&a, &b, t, &mut scalar);
+                sut.interpolate_scalar::<false>(&a, &b, t, &mut scalar, &mut []);
+                assert_eq!(bits(&fast), bits(&scalar), "{name}: {a:?} -> {b:?} at {t}");
+                // The stepping form writes the same configuration, and the same step on
+                // either path: `t` times the joint's difference, which `a` plus it wraps to.
+                sut.step_towards(&a, &b, t, &mut stepped, &mut step);
+                sut.interpolate_scalar::<true>(&a, &b, t, &mut scalar, &mut scalar_step);
+                assert_eq!(bits(&stepped), bits(&fast), "{name}: {a:?} -> {b:?} at {t}");
                 assert_eq!(
-                    fast.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
-                    scalar.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                    bits(&step),
+                    bits(&scalar_step),
                     "{name}: {a:?} -> {b:?} at {t}"
                 );
+                for j in 0..n {
+                    assert_eq!(step[j], t * sut.joint_delta(j, a[j], b[j]));
+                }
             }
             a[3] = f64::NAN;
             sut.interpolate(&a, &b, 0.5, &mut fast);

@@ -468,7 +468,7 @@ impl BatchChecker {
         resolution: f64,
         (a, b): (&[f64], &[f64]),
         with_end: bool,
-        mut decide: impl FnMut(&[usize; LANES], usize) -> bool,
+        decide: impl FnMut(&[usize; LANES], usize) -> bool,
     ) -> bool {
         // The states are a + (k / n) · delta; continuous joints need no wrapping here (the
         // kinematics only takes their sine and cosine).
@@ -477,6 +477,26 @@ impl BatchChecker {
             return true;
         }
         self.start.copy_from_slice(a);
+        self.states_free(n, with_end, decide)
+    }
+
+    /// [`BatchChecker::motion_may_collide`] of a tree extension given as its start `a`, its
+    /// step per joint (`b − a` the short way round, as [`Robot::step_towards`] writes it) and
+    /// its number of steps `n` at the resolution: the end state and the edge's states, from
+    /// what the extension computed already.
+    pub fn step_may_collide(&mut self, a: &[f64], step: &[f64], n: usize) -> bool {
+        self.start.copy_from_slice(a);
+        self.delta.copy_from_slice(step);
+        !self.states_free(n.max(1), true, |_, _| false)
+    }
+
+    /// The checks of [`BatchChecker::motion_free`] once `start` and `delta` hold the motion.
+    fn states_free(
+        &mut self,
+        n: usize,
+        with_end: bool,
+        mut decide: impl FnMut(&[usize; LANES], usize) -> bool,
+    ) -> bool {
         let mut batch = [0usize; LANES];
         let mut filled = 0;
         if with_end {
