@@ -180,13 +180,10 @@ impl ObjectBoxes {
         near
     }
 
-    /// Squared distance from `c` to box `o` (plain comparisons, which the vector path
-    /// repeats operation for operation).
+    /// Squared distance from `c` to box `o` ([`box_gap2`], whose operations the vector path
+    /// repeats one for one).
     fn gap2(&self, o: usize, c: &Vector3<f64>) -> f64 {
-        let max = |a: f64, b: f64| if a > b { a } else { b };
-        let d = |k: usize| max(max(self.lo[k][o] - c[k], c[k] - self.hi[k][o]), 0.0);
-        let (x, y, z) = (d(0), d(1), d(2));
-        x * x + y * y + z * z
+        box_gap2(|k| (self.lo[k][o], self.hi[k][o]), c)
     }
 
     #[cfg(target_arch = "x86_64")]
@@ -217,6 +214,19 @@ impl ObjectBoxes {
         }
         near
     }
+}
+
+/// Squared distance from `c` to the box whose bounds along axis `k` are `bounds(k)`, in plain
+/// comparisons (nalgebra's generic `sup` took several instructions per component).
+#[inline(always)]
+fn box_gap2(bounds: impl Fn(usize) -> (f64, f64), c: &Vector3<f64>) -> f64 {
+    let max = |a: f64, b: f64| if a > b { a } else { b };
+    let d = |k: usize| {
+        let (lo, hi) = bounds(k);
+        max(max(lo - c[k], c[k] - hi), 0.0)
+    };
+    let (x, y, z) = (d(0), d(1), d(2));
+    x * x + y * y + z * z
 }
 
 /// Exact validity of configurations of one robot in one environment.
@@ -425,14 +435,7 @@ impl<'a> ExactChecker<'a> {
         let names = self.robot.links();
         let n_objects = self.objects.len();
         let (object_axes, pair_axes) = axes.split_at_mut(model.part_count() * n_objects);
-        // Squared distance from a sphere's centre to an object's box, in plain comparisons
-        // (a `max` of each: nalgebra's generic `sup` took several instructions).
-        let out2 = |obj: &ExactObject, c: &Vector3<f64>| {
-            let max = |a: f64, b: f64| if a > b { a } else { b };
-            let d = |k: usize| max(max(obj.lo[k] - c[k], c[k] - obj.hi[k]), 0.0);
-            let (x, y, z) = (d(0), d(1), d(2));
-            x * x + y * y + z * z
-        };
+        let out2 = |obj: &ExactObject, c: &Vector3<f64>| box_gap2(|k| (obj.lo[k], obj.hi[k]), c);
         for &li in links {
             // The objects the link's bounding sphere reaches (all past the 64th), which hold
             // every part's sphere (with a hair of slack).

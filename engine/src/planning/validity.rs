@@ -119,23 +119,32 @@ impl<'a> Validity<'a> {
     /// through the batch checker in one pass, and a flag is a collision (the lanes err towards
     /// contact by 0.1 mm at most); near anchors, state by state as [`Validity::is_valid`].
     pub fn reach_valid(&mut self, a: &[f64], b: &[f64]) -> bool {
-        let far = self.far_from_anchors(a, b);
-        if let (Some(batch), true) = (self.batch.as_mut(), far) {
-            self.motions += 1;
-            return !batch.motion_may_collide(self.robot, self.resolution, (a, b), true);
-        }
-        self.is_valid(b) && self.motion_valid(a, b)
+        let (robot, resolution) = (self.robot, self.resolution);
+        self.reach_valid_by(a, b, |batch| {
+            !batch.motion_may_collide(robot, resolution, (a, b), true)
+        })
     }
 
     /// [`Validity::reach_valid`] of the extension from `a` to `b` that took `step` per joint
     /// ([`Robot::step_towards`]) over a configuration-space length `length`: away from anchors,
     /// the batch checker takes the step as it is (no differences computed again).
     pub fn step_valid(&mut self, a: &[f64], b: &[f64], step: &[f64], length: f64) -> bool {
+        let n = steps_over(length, self.resolution);
+        self.reach_valid_by(a, b, |batch| !batch.step_may_collide(a, step, n))
+    }
+
+    /// [`Validity::reach_valid`], the batch checker's part asked of `in_batch`.
+    #[inline(always)]
+    fn reach_valid_by(
+        &mut self,
+        a: &[f64],
+        b: &[f64],
+        in_batch: impl FnOnce(&mut BatchChecker) -> bool,
+    ) -> bool {
         let far = self.far_from_anchors(a, b);
         if let (Some(batch), true) = (self.batch.as_mut(), far) {
             self.motions += 1;
-            let n = steps_over(length, self.resolution);
-            return !batch.step_may_collide(a, step, n);
+            return in_batch(batch);
         }
         self.is_valid(b) && self.motion_valid(a, b)
     }
