@@ -119,7 +119,7 @@ impl PartialEq for Cancel {
 impl Default for PlannerParams {
     fn default() -> Self {
         PlannerParams {
-            range: 0.75,
+            range: 1.0,
             resolution: DEFAULT_RESOLUTION,
             time_limit: Duration::from_secs(10),
             max_iterations: 5_000_000,

@@ -5,6 +5,11 @@
 //! come from a [`NearestIndex`] built incrementally over the same nodes, so a query visits a
 //! few buckets instead of scanning the tree. Nothing is allocated per iteration beyond the
 //! arrays' amortised growth.
+//!
+//! A start or goal that no full step leaves (a gripper deep in a shelf) takes steps of
+//! [`ROOT_STEP`] of the range once an extension from it has failed: the search grows the
+//! smaller tree, so a one-node goal tree that cannot leave would otherwise take every
+//! iteration (what stalled the bookshelves at ranges of 1.0 and more before).
 
 use super::nearest::NearestIndex;
 use super::validity::Validity;
@@ -14,6 +19,10 @@ use std::time::Instant;
 
 const ROOT: u32 = u32::MAX;
 
+/// A start's or goal's step once an extension from it has failed, as a fraction of the range
+/// (0.25–0.75 and shrinking by steps measured no better on the MotionBenchMaker Fetch sets).
+const ROOT_STEP: f64 = 0.5;
+
 /// A tree of configurations stored flat, with a nearest-neighbour index over its nodes.
 struct Tree {
     dof: usize,
@@ -22,6 +31,9 @@ struct Tree {
     index: NearestIndex,
     /// Per node: its dynamic-domain radius (infinite until an extension from it fails).
     domain: Vec<f64>,
+    /// Per root (the tree's first nodes: the start, or the goals): true once an extension
+    /// from it has failed (see the module docs).
+    root_failed: Vec<bool>,
 }
 
 impl Tree {
@@ -32,6 +44,7 @@ impl Tree {
             parent: Vec::with_capacity(256),
             index: NearestIndex::new(continuous),
             domain: Vec::with_capacity(256),
+            root_failed: Vec::new(),
         }
     }
 
@@ -50,6 +63,12 @@ impl Tree {
         self.domain.push(f64::INFINITY);
         self.index.insert(q, i as u32);
         i
+    }
+
+    /// Adds a root: a start or goal.
+    fn add_root(&mut self, q: &[f64]) {
+        self.add(q, ROOT);
+        self.root_failed.push(false);
     }
 
     /// Index of the node nearest to `target`, and its distance.
@@ -225,7 +244,7 @@ impl Search<'_, '_, '_> {
             if d > tree.domain[near] {
                 return None;
             }
-            let out = self.extend_from(tree, near, d, target);
+            let out = self.extend_root_aware(tree, near, d, target);
             let r = &mut tree.domain[near];
             match out {
                 Extend::Trapped if r.is_finite() => *r = (*r * (1.0 - dd.alpha)).max(dd.min_radius),
@@ -236,24 +255,54 @@ impl Search<'_, '_, '_> {
             return Some(out);
         }
         let (near, d) = self.nearest(tree, target);
-        Some(self.extend_from(tree, near, d, target))
+        Some(self.extend_root_aware(tree, near, d, target))
+    }
+
+    /// [`Search::extend_from`], with a root's shorter step once one has failed from it.
+    #[inline(always)]
+    fn extend_root_aware(
+        &mut self,
+        tree: &mut Tree,
+        near: usize,
+        d: f64,
+        target: &[f64],
+    ) -> Extend {
+        let Some(&failed) = tree.root_failed.get(near) else {
+            return self.extend_from(tree, near, d, target, self.range);
+        };
+        let range = if failed {
+            self.range * ROOT_STEP
+        } else {
+            self.range
+        };
+        let out = self.extend_from(tree, near, d, target, range);
+        if let Extend::Trapped = out {
+            tree.root_failed[near] = true;
+        }
+        out
     }
 
     /// One step of at most `range` from node `near`, at distance `d`, towards `target`.
-    fn extend_from(&mut self, tree: &mut Tree, near: usize, d: f64, target: &[f64]) -> Extend {
+    fn extend_from(
+        &mut self,
+        tree: &mut Tree,
+        near: usize,
+        d: f64,
+        target: &[f64],
+        range: f64,
+    ) -> Extend {
         let near_q = tree.node(near);
-        let reached = d <= self.range;
+        let reached = d <= range;
         if reached {
             self.scratch.copy_from_slice(target);
         } else {
             // The step is kept: the edge's states follow from it without taking the joints'
             // differences again.
-            let t = self.range / d;
+            let t = range / d;
             self.robot
                 .step_towards(near_q, target, t, &mut self.scratch, &mut self.step);
         }
-        let (checker, scratch, step, range) =
-            (&mut *self.checker, &self.scratch, &self.step, self.range);
+        let (checker, scratch, step) = (&mut *self.checker, &self.scratch, &self.step);
         let ok = timed(self.timed, &mut self.phases.check, || {
             if reached {
                 checker.reach_valid(tree.node(near), scratch)
@@ -277,7 +326,7 @@ impl Search<'_, '_, '_> {
     fn connect(&mut self, tree: &mut Tree, target: &[f64]) -> Extend {
         let (mut from, mut d) = self.nearest(tree, target);
         loop {
-            match self.extend_from(tree, from, d, target) {
+            match self.extend_from(tree, from, d, target, self.range) {
                 Extend::Advanced(i) => {
                     from = i;
                     d = self.robot.distance(tree.node(i), target);
@@ -306,10 +355,10 @@ pub(crate) fn search(
     let t0 = Instant::now();
     let continuous: Vec<bool> = robot.variables().iter().map(|v| v.continuous).collect();
     let mut start_tree = Tree::new(dof, &continuous);
-    start_tree.add(start, ROOT);
+    start_tree.add_root(start);
     let mut goal_tree = Tree::new(dof, &continuous);
     for g in goals {
-        goal_tree.add(g, ROOT);
+        goal_tree.add_root(g);
     }
     // Start and goal may see each other directly.
     for (gi, g) in goals.iter().enumerate() {
@@ -390,6 +439,79 @@ pub(crate) fn search(
                 search.stats.tree_nodes = (start_tree.len() + goal_tree.len()) as u64;
                 return Ok(path);
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::collision::Shape;
+    use crate::world::{Environment, Object};
+    use crate::Pose;
+
+    /// A goal whose full-range steps towards a sample all hit a post takes half steps once
+    /// one has failed, and so leaves; a node that is not a root keeps the full range.
+    #[test]
+    fn a_root_that_failed_takes_half_steps() {
+        let robot = Robot::builtin("fetch").unwrap();
+        // A post beside the arm, about 0.9 rad round the shoulder's pan from the arm at zero.
+        let (r, angle) = (0.75_f64, 0.9_f64);
+        let post = Object {
+            name: "post".into(),
+            shape: Shape::cuboid([0.06, 0.06, 1.0]),
+            pose: Pose::translation(r * angle.cos(), r * angle.sin(), 1.0),
+        };
+        let env = Environment::from_objects([post]).unwrap();
+        let mut checker = Validity::new(&robot, &env, 1.0 / 32.0, 0.0);
+        let pan = robot
+            .variables()
+            .iter()
+            .position(|v| v.name == "shoulder_pan_joint")
+            .unwrap();
+        let at = |a: f64| {
+            let mut q = vec![0.0; robot.dof()];
+            q[pan] = a;
+            q
+        };
+        assert!(checker.is_valid(&at(0.0)) && checker.is_valid(&at(0.5)));
+        assert!(
+            !checker.is_valid(&at(angle)),
+            "the post is not in the arm's way"
+        );
+        let continuous: Vec<bool> = robot.variables().iter().map(|v| v.continuous).collect();
+        let mut stats = PlanStats::default();
+        let mut search = Search {
+            robot: &robot,
+            range: 1.0,
+            domain: None,
+            scratch: vec![0.0; robot.dof()],
+            step: vec![0.0; robot.dof()],
+            checker: &mut checker,
+            stats: &mut stats,
+            phases: Phases::default(),
+            timed: false,
+        };
+        let target = at(1.2);
+        let mut tree = Tree::new(robot.dof(), &continuous);
+        tree.add_root(&at(0.0));
+        assert!(matches!(
+            search.extend(&mut tree, &target),
+            Some(Extend::Trapped)
+        ));
+        match search.extend(&mut tree, &target) {
+            Some(Extend::Advanced(i)) => assert!((tree.node(i)[pan] - 0.5).abs() < 1e-9),
+            _ => panic!("the root's half step was not taken"),
+        }
+        // The same state as a node that is not a root: full steps only, trapped every time.
+        let mut tree = Tree::new(robot.dof(), &continuous);
+        tree.add_root(&at(-1.5));
+        tree.add(&at(0.0), 0);
+        let near = 1;
+        for _ in 0..2 {
+            let d = robot.distance(tree.node(near), &target);
+            let out = search.extend_root_aware(&mut tree, near, d, &target);
+            assert!(matches!(out, Extend::Trapped));
         }
     }
 }
