@@ -771,7 +771,7 @@ impl BatchChecker {
             // The lanes where the map may reach the link, then each cluster, then its
             // spheres: a ball inside one the grid cleared in a lane is clear in that lane.
             let link_map = match map {
-                Some(_) => unclear_lanes_of_link(grid, b, br),
+                Some(_) => unclear_lanes(grid, b, br, ALL_LANES),
                 None => 0,
             };
             if link_mask == 0 && link_map == 0 {
@@ -1099,25 +1099,6 @@ fn unclear_lanes(grid: Option<&Clearance>, p: [F8; 3], r: f32, lanes: u32) -> u3
     match grid {
         Some(g) if lanes != 0 => g.unclear8(p, r, lanes),
         _ => lanes,
-    }
-}
-
-/// [`unclear_lanes`] of a link's bound in every lane, first asked as one ball holding the
-/// eight: the lanes of a batch lie close together, and most links are far from the map.
-#[inline(always)]
-fn unclear_lanes_of_link(grid: Option<&Clearance>, b: [F8; 3], br: f32) -> u32 {
-    let Some(g) = grid else {
-        return ALL_LANES;
-    };
-    let lo = b.map(|v| v.hmin());
-    let hi = b.map(|v| v.hmax());
-    let centre = [0, 1, 2].map(|a| f64::from(0.5 * (lo[a] + hi[a])));
-    let half = [0, 1, 2].map(|a| f64::from(0.5 * (hi[a] - lo[a])));
-    let r = (half[0] * half[0] + half[1] * half[1] + half[2] * half[2]).sqrt() + f64::from(br);
-    if g.clear(centre, r) {
-        0
-    } else {
-        g.unclear8(b, br, ALL_LANES)
     }
 }
 

@@ -60,6 +60,9 @@ pub struct Clearance {
     /// The cover's box, metres.
     occupied_lo: [f64; 3],
     occupied_hi: [f64; 3],
+    /// The same in `f32`, rounded outwards.
+    occupied_lo32: [f32; 3],
+    occupied_hi32: [f32; 3],
 }
 
 /// One grid: cells of edge `res` holding distances to the nearest occupied cell, stored in
@@ -148,6 +151,8 @@ impl Clearance {
             cover,
             occupied_lo: [0.0; 3],
             occupied_hi: [0.0; 3],
+            occupied_lo32: [0.0; 3],
+            occupied_hi32: [0.0; 3],
         };
         c.set_cover(cover, res);
         c.recompute(map, cover);
@@ -158,6 +163,8 @@ impl Clearance {
         self.cover = cover;
         self.occupied_lo = cover.0.map(|v| (4 * v) as f64 * res);
         self.occupied_hi = cover.1.map(|v| (4 * v + 4) as f64 * res);
+        self.occupied_lo32 = self.occupied_lo.map(|v| (v as f32).next_down());
+        self.occupied_hi32 = self.occupied_hi.map(|v| (v as f32).next_up());
     }
 
     /// Recomputes both grids around the blocks `[lo, hi]` (as far as their padding reaches).
@@ -301,8 +308,9 @@ impl Clearance {
     /// Written in whole-lane operations, so that inside the batch checker's AVX2 code the
     /// cells, their bricks and the offsets are a few vector instructions for all eight lanes
     /// (computed for every lane, clamped into the grid, so no lane branches); only the stored
-    /// distances are read lane by lane. A lane outside the grid (or not finite) is decided by
-    /// [`Clearance::clear`].
+    /// distances are read lane by lane. A lane outside the grid is decided, in the same vector
+    /// operations, by its distance to the box holding every occupied voxel, as
+    /// [`Clearance::clear`] decides it (a lane that is not a number stays unclear).
     #[inline(always)]
     pub fn unclear8(&self, p: [F8; 3], r: f32, lanes: u32) -> u32 {
         self.test8::<false>(p, r, lanes).unwrap_or(lanes)
@@ -370,17 +378,32 @@ impl Clearance {
         if !(unclear.any() || outside.any()) {
             return Some(0);
         }
-        let mut out = unclear.bits();
-        let mut outside = outside.bits();
-        while outside != 0 {
-            let i = outside.trailing_zeros() as usize;
-            outside &= outside - 1;
-            let c = [p[0].0[i], p[1].0[i], p[2].0[i]];
-            if !self.clear(c.map(f64::from), f64::from(r + F32_SLACK)) {
-                out |= 1 << i;
-            }
+        let out = unclear.bits();
+        let outside = outside.bits();
+        if outside == 0 {
+            return Some(out);
         }
-        Some(out)
+        Some(out | (outside & !self.beyond8(p, r)))
+    }
+
+    /// The lanes (bits) whose ball (centres `p`, radius `r`) surely misses the box holding
+    /// every occupied voxel: what bounds the distance beyond the grids. A lane with a NaN
+    /// coordinate is never among them.
+    #[inline(always)]
+    fn beyond8(&self, p: [F8; 3], r: f32) -> u32 {
+        let zero = F8::splat(0.0);
+        let mut d2 = zero;
+        let mut number: Option<Mask8> = None;
+        for (a, &pa) in p.iter().enumerate() {
+            let gap = (F8::splat(self.occupied_lo32[a]) - pa)
+                .max(pa - F8::splat(self.occupied_hi32[a]))
+                .max(zero);
+            d2 = gap.mul_add(gap, d2);
+            let n = pa.le(pa);
+            number = Some(number.map_or(n, |m| m & n));
+        }
+        let need = r + F32_SLACK;
+        (F8::splat(need * need).le(d2) & number.expect("three axes")).bits()
     }
 
     /// Cells in the grids.
