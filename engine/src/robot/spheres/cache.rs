@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, OnceLock};
 
 /// Bumped whenever the fitter's output for the same input changes.
-const FIT_VERSION: &str = "ember-spheres-v2";
+const FIT_VERSION: &str = "ember-spheres-v3";
 const MAGIC: &[u8; 8] = b"EMBSPHR1";
 
 /// Where fitted spheres are kept between runs.

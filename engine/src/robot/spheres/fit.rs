@@ -119,14 +119,20 @@ pub fn surface_area(shapes: &[LinkShape]) -> f64 {
 /// Spheres covering the surface of `shapes` (one link, link frame) with protrusion at most
 /// `protrusion`. Deterministic.
 pub fn fit(shapes: &[LinkShape], protrusion: f64) -> Vec<Sphere> {
-    if let [LinkShape {
-        origin,
-        geometry: Geometry::Primitive(Shape::Sphere { radius }),
-    }] = shapes
-    {
-        // A ball is its own best model.
-        let c = origin.translation.vector;
-        return vec![([c.x, c.y, c.z], *radius)];
+    // Balls are their own best model: a link described by spheres alone (a spherized URDF, as
+    // VAMP's and cuRobo's robots are) keeps them exactly, with no protrusion.
+    let balls: Option<Vec<Sphere>> = shapes
+        .iter()
+        .map(|s| match s.geometry {
+            Geometry::Primitive(Shape::Sphere { radius }) => {
+                let c = s.origin.translation.vector;
+                Some(([c.x, c.y, c.z], radius))
+            }
+            _ => None,
+        })
+        .collect();
+    if let Some(balls) = balls.filter(|b| !b.is_empty()) {
+        return balls;
     }
     let parts: Vec<Part> = shapes.iter().map(Part::new).collect();
     if parts.is_empty() {
@@ -566,6 +572,30 @@ mod tests {
     fn a_ball_is_one_sphere() {
         let spheres = fit(&[shape(Shape::Sphere { radius: 0.1 })], 0.01);
         assert_eq!(spheres.len(), 1, "{spheres:?}");
+    }
+
+    /// A spherized link (several balls, as VAMP's robots are described) keeps its balls exactly:
+    /// refitting them had made every link up to the protrusion fatter.
+    #[test]
+    fn a_link_of_balls_keeps_them() {
+        let balls = [
+            ([0.0, 0.0, 0.1], 0.05),
+            ([0.0, 0.04, 0.2], 0.03),
+            ([0.0, 0.04, 0.2], 0.03),
+        ];
+        let shapes: Vec<LinkShape> = balls
+            .iter()
+            .map(|&(c, radius)| LinkShape {
+                origin: Pose::translation(c[0], c[1], c[2]),
+                geometry: Geometry::Primitive(Shape::Sphere { radius }),
+            })
+            .collect();
+        assert_eq!(fit(&shapes, 0.01), balls.to_vec());
+        // A ball beside another part is fitted with it.
+        let mut mixed = shapes.clone();
+        mixed.push(shape(Shape::cuboid([0.05, 0.05, 0.05])));
+        let spheres = fit(&mixed, 0.01);
+        assert!(spheres.len() > 3 && !balls.iter().all(|b| spheres.contains(b)));
     }
 
     #[test]
