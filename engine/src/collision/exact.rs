@@ -578,6 +578,10 @@ fn bounds_meet(
     (ba - bb).norm_squared() <= reach * reach
 }
 
+/// Parts of a link whose centres [`parts_touch`] places once on the stack (a link with more
+/// places them per test).
+const PLACED_PARTS: usize = 32;
+
 /// True when a part of link `a` touches a part of link `b` (at link poses `poses`), part
 /// pairs screened by their bounding spheres; `axes`, when given, holds the part pairs' last
 /// separating directions (part-major, one row per part) to try first and update.
@@ -589,14 +593,28 @@ fn parts_touch(
     mut axes: Option<&mut [Vector3<f64>]>,
 ) -> bool {
     let parts = model.part_count();
+    // `b`'s part centres placed once (not once per part of `a`: a spherized link has dozens of
+    // parts, and these products were a third of a path's validation), on the stack.
+    let parts_b = model.link_parts(b);
+    let mut centres_b = [Point3::origin(); PLACED_PARTS];
+    let placed = parts_b.len() <= PLACED_PARTS;
+    if placed {
+        for (c, pb) in centres_b.iter_mut().zip(parts_b) {
+            *c = poses[b] * Point3::from(pb.center);
+        }
+    }
     for (ia, pa) in model.part_numbers(a).zip(model.link_parts(a)) {
         let ca = poses[a] * Point3::from(pa.center);
-        let pose_a = poses[a] * pa.origin;
-        for (ib, pb) in model.part_numbers(b).zip(model.link_parts(b)) {
-            let cb = poses[b] * Point3::from(pb.center);
+        let mut pose_a = None;
+        for (k, (ib, pb)) in model.part_numbers(b).zip(parts_b).enumerate() {
+            let cb = match placed {
+                true => centres_b[k],
+                false => poses[b] * Point3::from(pb.center),
+            };
             if (ca - cb).norm() > pa.radius + pb.radius {
                 continue;
             }
+            let pose_a = pose_a.get_or_insert_with(|| poses[a] * pa.origin);
             let mut fresh = Vector3::zeros();
             let axis = match axes.as_deref_mut() {
                 Some(axes) => &mut axes[ia * parts + ib],
@@ -604,7 +622,7 @@ fn parts_touch(
             };
             if convex_touch_along(
                 &pa.convex,
-                &pose_a,
+                pose_a,
                 &pb.convex,
                 &(poses[b] * pb.origin),
                 axis,

@@ -171,6 +171,19 @@ pub(crate) fn convex_touch_along(
     pose_b: &Pose,
     axis: &mut Vector3<f64>,
 ) -> bool {
+    // A ball against anything but a hull: the distance from its centre, in closed form (a
+    // spherized robot's parts are all balls).
+    let ball = match (a, b) {
+        (Convex::Ball(r), other) => Some((*r, pose_a, other, pose_b)),
+        (other, Convex::Ball(r)) => Some((*r, pose_b, other, pose_a)),
+        _ => None,
+    };
+    if let Some((r, ball_pose, other, other_pose)) = ball {
+        let centre = other_pose.inverse_transform_point(&ball_pose.translation.vector.into());
+        if let Some(gap) = other.point_gap(&centre.coords) {
+            return gap - r <= TOUCH;
+        }
+    }
     let (a, b) = (
         gjk::Placed {
             shape: a,
