@@ -98,9 +98,16 @@ impl<'a> Validity<'a> {
     /// geometry says so.
     #[inline]
     pub fn is_valid(&mut self, q: &[f64]) -> bool {
-        if self.spheres.is_valid(q) {
-            return true;
-        }
+        let spheres_free = match self.batch.as_mut() {
+            Some(batch) => !batch.state_may_collide(q),
+            None => self.spheres.is_valid(q),
+        };
+        spheres_free || self.exact_clears(q)
+    }
+
+    /// True when `q`, touched by the spheres, is near an anchor and free in the exact
+    /// geometry.
+    fn exact_clears(&mut self, q: &[f64]) -> bool {
         if self.anchors.is_empty() || !self.near_anchor(q) {
             return false;
         }
@@ -151,8 +158,9 @@ impl<'a> Validity<'a> {
 
     /// True when the straight motion from `a` to `b` is free at the resolution (ends assumed
     /// valid). The states go eight at a time through the batch checker. Away from anchors a
-    /// flagged batch is a collision (within the lanes' 0.1 mm margin); near them a flagged
-    /// batch is decided state by state (spheres, then the exact fallback).
+    /// flagged batch is a collision (within the lanes' 0.1 mm margin); near them each state
+    /// of a flagged batch is checked alone in the lanes, and one still flagged near an anchor
+    /// goes to the exact checker.
     pub fn motion_valid(&mut self, a: &[f64], b: &[f64]) -> bool {
         self.motions += 1;
         let (robot, resolution) = (self.robot, self.resolution);
@@ -165,12 +173,11 @@ impl<'a> Validity<'a> {
             }
             Some(mut batch) => {
                 let mut state = std::mem::take(&mut self.state);
-                let ok = batch.motion_free(robot, resolution, (a, b), false, |ks, n| {
-                    ks.iter().all(|&k| {
-                        robot.interpolate(a, b, k as f64 / n as f64, &mut state);
-                        self.is_valid(&state)
-                    })
-                });
+                let decide = |k, n| {
+                    robot.interpolate(a, b, k as f64 / n as f64, &mut state);
+                    self.exact_clears(&state)
+                };
+                let ok = batch.motion_free(robot, resolution, (a, b), false, Some(decide));
                 self.state = state;
                 self.batch = Some(batch);
                 ok

@@ -274,9 +274,9 @@ fn random_map(rng: &mut impl rand::Rng) -> std::sync::Arc<ember_engine::world::m
 
 /// The eight-lane checker against the scalar one (the oracle) on random scenes and
 /// configurations, half of them with an occupancy map: it never misses a contact the scalar
-/// checker finds, and it flags a free configuration only at the margin's edge (rarely). Configurations are checked one per
-/// batch (all lanes equal) for per-configuration verdicts, and eight different ones per batch
-/// for the lanes' independence.
+/// checker finds, and it flags a free configuration only at the margin's edge (rarely).
+/// Configurations are checked one per batch (all lanes equal, and as one state) for
+/// per-configuration verdicts, and eight different ones per batch for the lanes' independence.
 #[test]
 fn batch_checker_agrees_with_the_scalar_checker() {
     use ember_engine::collision::batch::{lanes::F8, BatchChecker};
@@ -307,6 +307,8 @@ fn batch_checker_agrees_with_the_scalar_checker() {
                 for (qi, &valid) in q.iter().zip(&verdicts) {
                     let lanes: Vec<F8> = (0..dof).map(|j| F8::splat(qi[j] as f32)).collect();
                     let flagged = batch.may_collide(&lanes);
+                    // The same state given once, its map walks done in one lane only.
+                    assert_eq!(batch.state_may_collide(qi), flagged, "{name}: one state");
                     configs += 1;
                     if !valid {
                         contacts += 1;
@@ -396,4 +398,72 @@ fn batch_checker_with_a_history_answers_as_a_fresh_one() {
             "{name}: {contacts} contacts in {batches} batches"
         );
     }
+}
+
+/// A motion checked with a decision: each state of a flagged batch is checked again alone, and
+/// exactly the states the lanes flag alone are handed to the decision (Panda: no continuous
+/// joints, so a state alone is the same numbers as in its batch). With a decision that clears
+/// everything the motion is free; with one that clears nothing it is what the lanes say.
+#[test]
+fn a_decided_motion_asks_about_each_state_the_lanes_flag_alone() {
+    use ember_engine::collision::batch::BatchChecker;
+    use ember_engine::collision::checker::DEFAULT_RESOLUTION;
+    use rand::SeedableRng;
+    let mut rng = rand::rngs::StdRng::seed_from_u64(17);
+    let robot = Robot::builtin("panda").unwrap();
+    let dof = robot.dof();
+    let (mut motions, mut decided) = (0, 0);
+    for scene in 0..10 {
+        let mut env = random_scene(&mut rng, 5 + scene % 4);
+        env.set_map(Some(random_map(&mut rng)));
+        if SphereChecker::new(&robot, &env).blocked() {
+            continue;
+        }
+        let mut batch = BatchChecker::new(&robot, &env).unwrap();
+        let (mut a, mut b) = (vec![0.0; dof], vec![0.0; dof]);
+        for _ in 0..20 {
+            robot.sample_uniform(&mut rng, &mut a);
+            robot.sample_uniform(&mut rng, &mut b);
+            let ends = (a.as_slice(), b.as_slice());
+            let mut asked = Vec::new();
+            let free = batch.motion_free(
+                &robot,
+                DEFAULT_RESOLUTION,
+                ends,
+                true,
+                Some(|k, n| {
+                    asked.push((k, n));
+                    true
+                }),
+            );
+            assert!(free, "a decision that clears everything clears the motion");
+            let mut q = vec![0.0; dof];
+            let n =
+                ember_engine::collision::checker::motion_steps(&robot, &a, &b, DEFAULT_RESOLUTION)
+                    .max(1);
+            let mut flagged: Vec<(usize, usize)> = (1..=n)
+                .filter(|&k| {
+                    robot.interpolate(&a, &b, k as f64 / n as f64, &mut q);
+                    batch.state_may_collide(&q)
+                })
+                .map(|k| (k, n))
+                .collect();
+            asked.sort_unstable();
+            flagged.sort_unstable();
+            assert_eq!(asked, flagged, "the states handed to the decision");
+            let refused =
+                !batch.motion_free(&robot, DEFAULT_RESOLUTION, ends, true, Some(|_, _| false));
+            assert_eq!(
+                refused,
+                batch.motion_may_collide(&robot, DEFAULT_RESOLUTION, ends, true)
+            );
+            motions += 1;
+            decided += usize::from(!asked.is_empty());
+        }
+    }
+    // The test must bite: motions with states to decide, and motions without.
+    assert!(
+        decided * 5 > motions && decided < motions,
+        "{decided} of {motions}"
+    );
 }

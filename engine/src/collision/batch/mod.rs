@@ -97,6 +97,9 @@ enum Shift {
 }
 
 /// What a remembered contact's sphere touched.
+/// The decision [`BatchChecker::motion_free`] is given when it has none.
+type NoDecision = fn(usize, usize) -> bool;
+
 #[derive(Clone, Copy)]
 enum Touched {
     /// An object, by number.
@@ -176,6 +179,9 @@ pub struct BatchChecker {
     /// Batches checked, and those a remembered contact ended.
     batches: u64,
     remembered: u64,
+    /// The lanes that hold distinct states: all of them, but the first alone while one state
+    /// fills every lane (the map's voxels are then walked once, not eight times).
+    live: u32,
     avx2: bool,
 }
 
@@ -347,6 +353,7 @@ impl BatchChecker {
             recent: [None; RECENT],
             batches: 0,
             remembered: 0,
+            live: ALL_LANES,
             lanes: vec![F8::default(); robot.dof()],
             start: vec![0.0; robot.dof()],
             delta: vec![0.0; robot.dof()],
@@ -452,23 +459,22 @@ impl BatchChecker {
         (a, b): (&[f64], &[f64]),
         with_end: bool,
     ) -> bool {
-        !self.motion_free(robot, resolution, (a, b), with_end, |_, _| false)
+        !self.motion_free(robot, resolution, (a, b), with_end, None::<NoDecision>)
     }
 
     /// True when every state strictly between `a` and `b` (at `resolution`; and `b` itself
-    /// when `with_end`, first) is free: the
-    /// states go eight at a time, coarse to fine (bisection order), and a batch the lanes flag
-    /// is handed to `decide` (its state numbers `k`, of `n` steps: `a + k/n (b − a)`, the
-    /// last repeated to fill the batch), which says whether they are all free after all; the
-    /// first batch it does not clear ends the check. So a colliding edge costs the batches up
-    /// to the first flagged one and at most eight decisions.
+    /// when `with_end`, first) is free: the states go eight at a time, coarse to fine
+    /// (bisection order). Without `decide`, a batch the lanes flag is a collision. With it,
+    /// each state of a flagged batch is checked again alone, and one the lanes still flag is
+    /// handed to `decide` (its number `k` of `n` steps: `a + k/n (b − a)`), which says whether
+    /// it is free after all; the first it does not clear ends the check.
     pub fn motion_free(
         &mut self,
         robot: &Robot,
         resolution: f64,
         (a, b): (&[f64], &[f64]),
         with_end: bool,
-        decide: impl FnMut(&[usize; LANES], usize) -> bool,
+        decide: Option<impl FnMut(usize, usize) -> bool>,
     ) -> bool {
         // The states are a + (k / n) · delta; continuous joints need no wrapping here (the
         // kinematics only takes their sine and cosine).
@@ -487,7 +493,24 @@ impl BatchChecker {
     pub fn step_may_collide(&mut self, a: &[f64], step: &[f64], n: usize) -> bool {
         self.start.copy_from_slice(a);
         self.delta.copy_from_slice(step);
-        !self.states_free(n.max(1), true, |_, _| false)
+        !self.states_free(n.max(1), true, None::<NoDecision>)
+    }
+
+    /// True when configuration `q` may touch something: one state in every lane.
+    pub fn state_may_collide(&mut self, q: &[f64]) -> bool {
+        for (lane, &v) in self.lanes.iter_mut().zip(q) {
+            *lane = F8::splat(v as f32);
+        }
+        self.alone(|sut| sut.lanes_may_collide(None))
+    }
+
+    /// `check` with the first lane marked as the only distinct one.
+    #[inline]
+    fn alone(&mut self, check: impl FnOnce(&mut Self) -> bool) -> bool {
+        self.live = 1;
+        let hit = check(self);
+        self.live = ALL_LANES;
+        hit
     }
 
     /// The checks of [`BatchChecker::motion_free`] once `start` and `delta` hold the motion.
@@ -495,7 +518,7 @@ impl BatchChecker {
         &mut self,
         n: usize,
         with_end: bool,
-        mut decide: impl FnMut(&[usize; LANES], usize) -> bool,
+        mut decide: Option<impl FnMut(usize, usize) -> bool>,
     ) -> bool {
         let mut batch = [0usize; LANES];
         let mut filled = 0;
@@ -507,7 +530,8 @@ impl BatchChecker {
             batch[filled] = k;
             filled += 1;
             if filled == LANES {
-                if self.states_may_collide(n, &batch) && !decide(&batch, n) {
+                if self.states_may_collide(n, &batch) && !self.decided_free(n, &batch, &mut decide)
+                {
                     return false;
                 }
                 filled = 0;
@@ -520,11 +544,28 @@ impl BatchChecker {
             let may_collide = self.states_may_collide(n, &batch);
             // Only the distinct states count (the filler repeats the last).
             self.states -= (LANES - filled) as u64;
-            if may_collide && !decide(&batch, n) {
+            if may_collide && !self.decided_free(n, &batch[..filled], &mut decide) {
                 return false;
             }
         }
         true
+    }
+
+    /// True when each of the states `ks` (of `n` steps) of a flagged batch is free: the lanes
+    /// clear it alone, or `decide` does. False without `decide`.
+    fn decided_free(
+        &mut self,
+        n: usize,
+        ks: &[usize],
+        decide: &mut Option<impl FnMut(usize, usize) -> bool>,
+    ) -> bool {
+        let Some(decide) = decide else {
+            return false;
+        };
+        ks.iter().all(|&k| {
+            let alone = [k; LANES];
+            !self.alone(|sut| sut.lanes_may_collide(Some((&alone, n)))) || decide(k, n)
+        })
     }
 
     /// True when any of the states `start + (k / n) · delta` for the eight `ks` may touch
@@ -754,7 +795,7 @@ impl BatchChecker {
             let p = self.sphere_at[s];
             let hit = match j {
                 Touched::Object(j) => penetrates(&self.objects[j], p, r),
-                Touched::Map => lanes_touch_map(map, grid, p, r, ALL_LANES),
+                Touched::Map => lanes_touch_map(map, grid, p, r, self.live),
             };
             if hit {
                 self.remembered += 1;
@@ -771,7 +812,7 @@ impl BatchChecker {
             // The lanes where the map may reach the link, then each cluster, then its
             // spheres: a ball inside one the grid cleared in a lane is clear in that lane.
             let link_map = match map {
-                Some(_) => unclear_lanes(grid, b, br, ALL_LANES),
+                Some(_) => unclear_lanes(grid, b, br, self.live),
                 None => 0,
             };
             if link_mask == 0 && link_map == 0 {
