@@ -212,7 +212,7 @@ fn lane_figures(
     use ember_engine::collision::batch::{lanes::F8, BatchChecker};
     use ember_engine::collision::checker::{motion_steps, DEFAULT_RESOLUTION};
     let dof = robot.dof();
-    let mut batch = BatchChecker::new(robot, env).expect("no map in the bench scene");
+    let mut batch = BatchChecker::new(robot, env);
     let free: Vec<&Vec<f64>> = configs.iter().filter(|q| scalar.is_valid(q)).collect();
     let groups: Vec<Vec<F8>> = free
         .chunks_exact(8)

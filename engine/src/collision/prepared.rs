@@ -17,9 +17,8 @@ pub(crate) struct Prepared {
     pub fixed_self_contact: Option<Contact>,
     /// The sphere model at rest, links that never move placed.
     pub spheres: Placement,
-    /// The batch checker in an empty environment; `None` when a link has more clusters than
-    /// it takes.
-    pub batch: Option<BatchChecker>,
+    /// The batch checker in an empty environment.
+    pub batch: BatchChecker,
     /// Working copies of the two above that finished plans gave back: the next plan takes one
     /// instead of copying the templates (with a fine sphere model they hold ~100 kB each, and
     /// the copy was a tenth of a short plan).
@@ -49,9 +48,10 @@ impl Prepared {
 
     /// A working copy of the batch checker (its environment still to be set): a spare, else
     /// a copy of the template.
-    pub fn take_batch(&self) -> Option<BatchChecker> {
-        let template = self.batch.as_ref()?;
-        Some(self.spare_batch.take().unwrap_or_else(|| template.clone()))
+    pub fn take_batch(&self) -> BatchChecker {
+        self.spare_batch
+            .take()
+            .unwrap_or_else(|| self.batch.clone())
     }
 
     /// Gives back working copies taken from this robot's templates, for the next plan.

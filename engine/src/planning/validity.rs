@@ -20,7 +20,7 @@ use crate::world::Environment;
 pub struct Validity<'a> {
     robot: &'a Robot,
     spheres: SphereChecker<'a>,
-    /// Edge states eight at a time; `None` when the batch checker cannot take the scene.
+    /// Edge states eight at a time; `None` when the robot is blocked where it never moves.
     batch: Option<BatchChecker>,
     exact: ExactChecker<'a>,
     anchors: Vec<Vec<f64>>,
@@ -40,7 +40,7 @@ impl<'a> Validity<'a> {
         let batch = if spheres.blocked() {
             None
         } else {
-            BatchChecker::new(robot, env)
+            Some(BatchChecker::new(robot, env))
         };
         Validity {
             robot,

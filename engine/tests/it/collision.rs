@@ -297,7 +297,7 @@ fn batch_checker_agrees_with_the_scalar_checker() {
                 // the batch checker is not used then.
                 continue;
             }
-            let mut batch = BatchChecker::new(&robot, &env).unwrap();
+            let mut batch = BatchChecker::new(&robot, &env);
             let mut q = vec![vec![0.0; dof]; 8];
             for _ in 0..150 {
                 for qi in q.iter_mut() {
@@ -372,7 +372,7 @@ fn batch_checker_with_a_history_answers_as_a_fresh_one() {
             if SphereChecker::new(&robot, &env).blocked() {
                 continue;
             }
-            let mut batch = BatchChecker::new(&robot, &env).unwrap();
+            let mut batch = BatchChecker::new(&robot, &env);
             let mut q = vec![0.0; dof];
             robot.sample_uniform(&mut rng, &mut q);
             let mut step = vec![0.0; dof];
@@ -386,7 +386,7 @@ fn batch_checker_with_a_history_answers_as_a_fresh_one() {
                     .map(|j| F8(std::array::from_fn(|k| (q[j] + 0.01 * k as f64) as f32)))
                     .collect();
                 let with_history = batch.may_collide(&lanes);
-                let fresh = BatchChecker::new(&robot, &env).unwrap().may_collide(&lanes);
+                let fresh = BatchChecker::new(&robot, &env).may_collide(&lanes);
                 assert_eq!(with_history, fresh, "{name}, scene {scene}: at {q:?}");
                 batches += 1;
                 contacts += usize::from(fresh);
@@ -419,7 +419,7 @@ fn a_decided_motion_asks_about_each_state_the_lanes_flag_alone() {
         if SphereChecker::new(&robot, &env).blocked() {
             continue;
         }
-        let mut batch = BatchChecker::new(&robot, &env).unwrap();
+        let mut batch = BatchChecker::new(&robot, &env);
         let (mut a, mut b) = (vec![0.0; dof], vec![0.0; dof]);
         for _ in 0..20 {
             robot.sample_uniform(&mut rng, &mut a);

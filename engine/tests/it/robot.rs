@@ -492,3 +492,78 @@ fn a_millimetre_mesh_without_its_scale_is_refused_not_fitted() {
         "{text}"
     );
 }
+
+/// A fine sphere model (links of 640 balls: 80 clusters each) and a crowded scene (more than 64
+/// objects, those in reach past the 64th) still go through the batch checker, which never
+/// misses a contact the scalar checker finds, self-collisions included.
+#[test]
+fn fine_models_and_crowded_scenes_keep_the_batch_checker() {
+    use ember_engine::collision::batch::BatchChecker;
+    use rand::{Rng, SeedableRng};
+    let bot = testbot::write("fine");
+    // link1 and the tool as columns of balls (a spherized link is used as given, not
+    // fitted): their pair is checked, and folds onto itself.
+    let column = |dz: f64| {
+        (0..640)
+            .map(|i| {
+                let (x, y, z) = ((i % 4) as f64, (i / 4 % 4) as f64, (i / 16) as f64);
+                format!(
+                    r#"<collision><origin xyz="{} {} {}"/><geometry><sphere radius="0.01"/></geometry></collision>"#,
+                    0.0125 * x - 0.019,
+                    0.0125 * y - 0.019,
+                    dz * z,
+                )
+            })
+            .collect::<String>()
+    };
+    let mut urdf = std::fs::read_to_string(&bot.urdf).unwrap();
+    for (link, dz) in [("link1", 0.01), ("tool", 0.008)] {
+        let open = format!(r#"<link name="{link}">"#);
+        let start = urdf.find(&open).unwrap() + open.len();
+        let end = start + urdf[start..].find("</link>").unwrap();
+        urdf.replace_range(start..end, &column(dz));
+    }
+    std::fs::write(&bot.urdf, urdf).unwrap();
+    let robot = load(&bot);
+    let most = robot.spheres().link_clusters.iter().map(|r| r.len()).max();
+    assert!(most > Some(64), "{most:?} clusters on a link at most");
+    let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+    // 64 boxes out of reach, then 40 around the arm.
+    let objects = (0..104).map(|i| {
+        let c = if i < 64 {
+            [5.0 + i as f64, 5.0, 0.0]
+        } else {
+            [
+                rng.random_range(-0.8..0.8),
+                rng.random_range(-0.8..0.8),
+                rng.random_range(0.0..1.2),
+            ]
+        };
+        block(&format!("b{i}"), [0.06, 0.06, 0.06], c)
+    });
+    let env = Environment::from_objects(objects).unwrap();
+    let mut scalar = SphereChecker::new(&robot, &env);
+    let mut batch = BatchChecker::new(&robot, &env);
+    let mut q = vec![0.0; robot.dof()];
+    let (mut objects_hit, mut self_hit, mut free) = (0, 0, 0);
+    for _ in 0..1000 {
+        robot.sample_uniform(&mut rng, &mut q);
+        let flagged = batch.state_may_collide(&q);
+        match scalar.contact(&q) {
+            None => free += 1,
+            Some(c) => {
+                assert!(flagged, "missed {c} at {q:?}");
+                match c {
+                    Contact::SelfCollision { .. } => self_hit += 1,
+                    _ => objects_hit += 1,
+                }
+            }
+        }
+    }
+    // The test must bite: contacts of both kinds, and free configurations.
+    assert!(
+        objects_hit > 20 && self_hit > 5 && free > 20,
+        "{objects_hit} object contacts, {self_hit} self-collisions, {free} free"
+    );
+    std::fs::remove_dir_all(&bot.packages).ok();
+}

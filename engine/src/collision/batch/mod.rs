@@ -14,11 +14,15 @@
 //! this checker when it is so.
 //!
 //! Radii are enlarged by [`MARGIN`] (0.1 mm, far above `f32` rounding at robot scale), so a
-//! batch found free is free for the scalar checker too; a batch in contact is handed back to
-//! the scalar checker state by state ([`Validity`](crate::planning::validity::Validity) does),
-//! so the planner's verdicts are the scalar checker's, found faster. An occupancy map is one
-//! more obstacle down the same hierarchy: its [`Clearance`] grid clears most balls in one
-//! read per lane, and a sphere it cannot clear is decided by the map's voxels, lane by lane.
+//! batch found free is free for the scalar checker too, and a flagged batch is taken as a
+//! collision; near the exact fallback's anchors each state of a flagged batch is checked
+//! again alone, and only a state still flagged goes to the exact checker
+//! ([`Validity`](crate::planning::validity::Validity) does). An occupancy map is one more
+//! obstacle down the same hierarchy: its [`Clearance`] grid clears most balls in one read per
+//! lane, and a sphere it cannot clear is decided by the map's voxels, lane by lane.
+//!
+//! Any model and scene fit: objects go down the hierarchy in groups of 64 (one bit each in a
+//! mask), and a link's clusters meet another link's 64 at a time.
 //!
 //! Compiled twice: for AVX2 with FMA (chosen at run time when the CPU has them) and for the
 //! baseline target; the arithmetic is the same (products are summed by fused multiply-adds
@@ -97,6 +101,9 @@ enum Shift {
 }
 
 /// What a remembered contact's sphere touched.
+/// Objects per group: the masks of a group's objects are one `u64`.
+const GROUP: usize = 64;
+
 /// The decision [`BatchChecker::motion_free`] is given when it has none.
 type NoDecision = fn(usize, usize) -> bool;
 
@@ -186,20 +193,14 @@ pub struct BatchChecker {
 }
 
 impl BatchChecker {
-    /// A batch checker, or `None` when the environment holds more than 64 objects or a link
-    /// has more than 64 sphere clusters (the scalar checker handles those).
-    pub fn new(robot: &Robot, env: &Environment) -> Option<Self> {
-        robot.prepared().take_batch()?.in_environment(env)
+    /// A batch checker for `robot` in `env`.
+    pub fn new(robot: &Robot, env: &Environment) -> Self {
+        robot.prepared().take_batch().in_environment(env)
     }
 
     /// The batch checker for `robot` in an empty environment: what depends on the robot
-    /// alone, built once per robot ([`Robot::prepared`]). `None` when a link has more than 64
-    /// sphere clusters.
-    pub(crate) fn for_robot(robot: &Robot) -> Option<Self> {
-        let clusters_per_link = robot.spheres().link_clusters.iter().map(|r| r.len());
-        if clusters_per_link.max() > Some(64) {
-            return None;
-        }
+    /// alone, built once per robot ([`Robot::prepared`]).
+    pub(crate) fn for_robot(robot: &Robot) -> Self {
         let links = robot.links();
         let model = robot.spheres();
         let f = |v: f64| v as f32;
@@ -377,15 +378,11 @@ impl BatchChecker {
             }
         }
         sut.epoch = 0;
-        Some(sut)
+        sut
     }
 
-    /// This checker in `env` (its counters reset); `None` when `env` holds more than 64
-    /// objects.
-    fn in_environment(mut self, env: &Environment) -> Option<Self> {
-        if env.objects().len() > 64 {
-            return None;
-        }
+    /// This checker in `env` (its counters reset).
+    fn in_environment(mut self, env: &Environment) -> Self {
         // An empty map is no obstacle; the grid of a non-empty one is built here, not mid-check.
         let map = env.shared_map().filter(|m| {
             m.clearance();
@@ -438,7 +435,7 @@ impl BatchChecker {
         self.batches = 0;
         self.remembered = 0;
         self.recent = [None; RECENT];
-        Some(self)
+        self
     }
 
     /// This checker with its map let go (it may be large), to be kept for another environment
@@ -803,12 +800,34 @@ impl BatchChecker {
                 return true;
             }
         }
+        // Objects go in groups of 64 (one bit each in the masks below), the map with the
+        // first; all but crowded scenes have one group.
+        for group in 0..self.objects.len().div_ceil(GROUP).max(1) {
+            let map = if group == 0 { map } else { None };
+            if self.group_contact(group, map, grid) {
+                return true;
+            }
+        }
+        false
+    }
+
+    /// [`BatchChecker::env_contact_with`] down the hierarchy for the objects of one group
+    /// and the map, if given.
+    #[inline(always)]
+    fn group_contact(
+        &mut self,
+        group: usize,
+        map: Option<&OccupancyMap>,
+        grid: Option<&Clearance>,
+    ) -> bool {
+        let first = group * GROUP;
+        let end = self.objects.len().min(first + GROUP);
         for k in 0..self.moving.len() {
             let l = self.moving[k];
             self.place_bound(l);
             let (_, br) = self.bound[l].unwrap_or_default();
             let b = self.bounds[l];
-            let link_mask = self.objects_reached(b, br);
+            let link_mask = self.objects_reached(group, b, br);
             // The lanes where the map may reach the link, then each cluster, then its
             // spheres: a ball inside one the grid cleared in a lane is clear in that lane.
             let link_map = match map {
@@ -821,7 +840,7 @@ impl BatchChecker {
             for ci in self.link_clusters[l].clone() {
                 self.place_cluster(l, ci);
                 let (c, cr) = (self.cluster_at[ci], self.cluster[ci].1);
-                let cluster_mask = penetrated(&self.objects, link_mask, c, cr);
+                let cluster_mask = penetrated(&self.objects[first..end], link_mask, c, cr);
                 let cluster_map = unclear_lanes(grid, c, cr, link_map);
                 if cluster_mask == 0 && cluster_map == 0 {
                     continue;
@@ -842,9 +861,9 @@ impl BatchChecker {
                         *at = pose.apply_const_on(c, avx2);
                     }
                     let p = *at;
-                    let hit = penetrated(&self.objects, cluster_mask, p, r);
+                    let hit = penetrated(&self.objects[first..end], cluster_mask, p, r);
                     if hit != 0 {
-                        let object = Touched::Object(hit.trailing_zeros() as usize);
+                        let object = Touched::Object(first + hit.trailing_zeros() as usize);
                         self.remember((l, s, object));
                         return true;
                     }
@@ -860,21 +879,23 @@ impl BatchChecker {
         false
     }
 
-    /// The objects a link's bound (centres `b` in eight lanes, radius `br`) penetrates in some
-    /// lane, as bits: world boxes first, then the shapes.
+    /// The objects of group `group` a link's bound (centres `b` in eight lanes, radius `br`)
+    /// penetrates in some lane, as bits: world boxes first, then the shapes.
     #[inline(always)]
-    fn objects_reached(&self, b: [F8; 3], br: f32) -> u64 {
-        if self.objects.is_empty() {
+    fn objects_reached(&self, group: usize, b: [F8; 3], br: f32) -> u64 {
+        let first = group * GROUP;
+        if self.objects.len() <= first {
             return 0;
         }
         let lo = b.map(|v| v.hmin() - br);
         let hi = b.map(|v| v.hmax() + br);
         let mut cand = 0u64;
-        for (block, (olo, ohi)) in self.object_boxes.iter().enumerate() {
+        let boxes = &self.object_boxes[first / LANES..];
+        for (block, (olo, ohi)) in boxes.iter().take(GROUP / LANES).enumerate() {
             let reach = boxes_overlapping(olo, ohi, lo, hi, self.avx2);
             cand |= (reach as u64) << (block * LANES);
         }
-        penetrated(&self.objects, cand, b, br)
+        penetrated(&self.objects[first..], cand, b, br)
     }
 
     #[inline(always)]
@@ -888,37 +909,56 @@ impl BatchChecker {
             if !self.box_reached(a, bb, rb) || !self.box_reached(b, ba, ra) {
                 continue;
             }
-            // The clusters of `b` within reach of `a`'s bound, as bits (at most 64 per link).
+            // `b`'s clusters go 64 at a time (one per bit); most links have one such group.
             let clusters_b = self.link_clusters[b].clone();
-            let mut near_b = 0u64;
-            for (bit, cb) in clusters_b.clone().enumerate() {
-                self.place_cluster(b, cb);
-                let (pb, crb) = (self.cluster_at[cb], self.cluster[cb].1);
-                if overlap(pb, crb, ba, ra) && self.box_reached(a, pb, crb) {
-                    near_b |= 1 << bit;
+            for first in clusters_b.clone().step_by(64) {
+                let group = first..clusters_b.end.min(first + 64);
+                if self.clusters_touch((a, ba, ra), (b, bb, rb), group) {
+                    return true;
                 }
             }
-            if near_b == 0 {
+        }
+        false
+    }
+
+    /// True when a sphere of link `a` (bound centres `ba`, radius `ra`) overlaps one of the
+    /// clusters `clusters_b` (at most 64) of link `b` in some lane.
+    #[inline(always)]
+    fn clusters_touch(
+        &mut self,
+        (a, ba, ra): (usize, [F8; 3], f32),
+        (b, bb, rb): (usize, [F8; 3], f32),
+        clusters_b: std::ops::Range<usize>,
+    ) -> bool {
+        // The clusters of `b` within reach of `a`'s bound, as bits.
+        let mut near_b = 0u64;
+        for (bit, cb) in clusters_b.clone().enumerate() {
+            self.place_cluster(b, cb);
+            let (pb, crb) = (self.cluster_at[cb], self.cluster[cb].1);
+            if overlap(pb, crb, ba, ra) && self.box_reached(a, pb, crb) {
+                near_b |= 1 << bit;
+            }
+        }
+        if near_b == 0 {
+            return false;
+        }
+        for ca in self.link_clusters[a].clone() {
+            self.place_cluster(a, ca);
+            let (pa, cra) = (self.cluster_at[ca], self.cluster[ca].1);
+            if !overlap(pa, cra, bb, rb) || !self.box_reached(b, pa, cra) {
                 continue;
             }
-            for ca in self.link_clusters[a].clone() {
-                self.place_cluster(a, ca);
-                let (pa, cra) = (self.cluster_at[ca], self.cluster[ca].1);
-                if !overlap(pa, cra, bb, rb) || !self.box_reached(b, pa, cra) {
+            let mut m = near_b;
+            while m != 0 {
+                let cb = clusters_b.start + m.trailing_zeros() as usize;
+                m &= m - 1;
+                let (pb, crb) = (self.cluster_at[cb], self.cluster[cb].1);
+                if !overlap(pa, cra, pb, crb) {
                     continue;
                 }
-                let mut m = near_b;
-                while m != 0 {
-                    let cb = clusters_b.start + m.trailing_zeros() as usize;
-                    m &= m - 1;
-                    let (pb, crb) = (self.cluster_at[cb], self.cluster[cb].1);
-                    if !overlap(pa, cra, pb, crb) {
-                        continue;
-                    }
-                    self.place_spheres(a, ca);
-                    if self.spheres_touch(b, ca, cb) {
-                        return true;
-                    }
+                self.place_spheres(a, ca);
+                if self.spheres_touch(b, ca, cb) {
+                    return true;
                 }
             }
         }
@@ -1261,7 +1301,7 @@ mod tests {
                 ),
             });
             let env = Environment::from_objects(objects).unwrap();
-            let mut vector = BatchChecker::new(&robot, &env).unwrap();
+            let mut vector = BatchChecker::new(&robot, &env);
             let mut portable = vector.clone();
             portable.avx2 = false;
             let mut q = vec![0.0; robot.dof()];
