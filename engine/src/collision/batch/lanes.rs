@@ -108,9 +108,12 @@ impl F8 {
     #[inline(always)]
     pub fn any_lt(self, o: F8) -> bool {
         let d = self - o;
-        let bits = d.0.map(f32::to_bits);
-        let neg = bits.map(|b| (b as i32) < 0);
-        neg.into_iter().fold(false, |a, b| a | b)
+        // A loop, not `array::map`, as in `Mask8::any`.
+        let mut any = false;
+        for v in d.0 {
+            any |= (v.to_bits() as i32) < 0;
+        }
+        any
     }
 
     /// The lanes where `self` is at most `o`, as a lane mask (for several tests and-ed
@@ -226,8 +229,13 @@ impl Mask8 {
     /// True when some lane is set: flags or-ed together, one vector test under AVX.
     #[inline(always)]
     pub fn any(self) -> bool {
-        let neg = self.0.map(|b| (b as i32) < 0);
-        neg.into_iter().fold(false, |a, b| a | b)
+        // A loop, not `array::map`: the map's closure was once left uninlined (and so
+        // compiled without AVX) in the batch checker.
+        let mut any = false;
+        for b in self.0 {
+            any |= (b as i32) < 0;
+        }
+        any
     }
 
     /// The lanes set in `self` and not in `o`.

@@ -357,9 +357,12 @@ impl Clearance {
             let o = pa - (f + F8::splat(0.5)) * res;
             off2 = o.mul_add(o, off2);
         }
-        let d = F8(std::array::from_fn(|i| {
-            g.bricks[brick[i] as usize][within[i] as usize] as f32
-        }));
+        // A loop, not `array::from_fn`: its closure was left uninlined in the batch checker.
+        let mut d = [0.0f32; LANES];
+        for i in 0..LANES {
+            d[i] = f32::from(g.bricks[brick[i] as usize][within[i] as usize]);
+        }
+        let d = F8(d);
         let need = F8::splat(r + l.reach);
         let d = d * F8::splat(l.step);
         let off = off2.sqrt();
