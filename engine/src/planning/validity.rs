@@ -98,17 +98,25 @@ impl<'a> Validity<'a> {
     /// geometry says so.
     #[inline]
     pub fn is_valid(&mut self, q: &[f64]) -> bool {
-        let spheres_free = match self.batch.as_mut() {
-            Some(batch) => !batch.state_may_collide(q),
-            None => self.spheres.is_valid(q),
-        };
-        spheres_free || self.exact_clears(q)
+        match self.batch.take() {
+            Some(mut batch) => {
+                let free = !batch.state_may_collide(q) || self.exact_clears(Some(&mut batch), q);
+                self.batch = Some(batch);
+                free
+            }
+            None => self.spheres.is_valid(q) || self.exact_clears(None, q),
+        }
     }
 
     /// True when `q`, touched by the spheres, is near an anchor and free in the exact
-    /// geometry.
-    fn exact_clears(&mut self, q: &[f64]) -> bool {
+    /// geometry. With the lanes of `batch`, a state whose balls inside the geometry already
+    /// touch something is refused without the exact checker (most states near an anchor the
+    /// spheres flag are in real contact).
+    fn exact_clears(&mut self, batch: Option<&mut BatchChecker>, q: &[f64]) -> bool {
         if self.anchors.is_empty() || !self.near_anchor(q) {
+            return false;
+        }
+        if batch.is_some_and(|b| b.state_surely_collides(q)) {
             return false;
         }
         self.fallbacks += 1;
@@ -173,9 +181,9 @@ impl<'a> Validity<'a> {
             }
             Some(mut batch) => {
                 let mut state = std::mem::take(&mut self.state);
-                let decide = |k, n| {
+                let decide = |batch: &mut BatchChecker, k, n| {
                     robot.interpolate(a, b, k as f64 / n as f64, &mut state);
-                    self.exact_clears(&state)
+                    self.exact_clears(Some(batch), &state)
                 };
                 let ok = batch.motion_free(robot, resolution, (a, b), false, Some(decide));
                 self.state = state;

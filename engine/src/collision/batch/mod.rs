@@ -105,7 +105,7 @@ enum Shift {
 const GROUP: usize = 64;
 
 /// The decision [`BatchChecker::motion_free`] is given when it has none.
-type NoDecision = fn(usize, usize) -> bool;
+type NoDecision = fn(&mut BatchChecker, usize, usize) -> bool;
 
 #[derive(Clone, Copy)]
 enum Touched {
@@ -158,6 +158,9 @@ pub struct BatchChecker {
     cluster: Vec<([f32; 3], f32, std::ops::Range<usize>)>,
     /// Per sphere: centre (link frame), radius (+ margin).
     sphere: Vec<([f32; 3], f32)>,
+    /// Per sphere: centre and the radius of its ball inside the geometry (less the margin):
+    /// swapped with `sphere` for [`BatchChecker::state_surely_collides`].
+    sphere_inner: Vec<([f32; 3], f32)>,
     objects: Vec<Object8>,
     /// Object world boxes eight objects per vector (`[lo; 3]`, `[hi; 3]`); padding objects
     /// have empty boxes.
@@ -298,6 +301,15 @@ impl BatchChecker {
                 (place(l, model.center[s]), f(model.radius[s]) + MARGIN)
             })
             .collect();
+        let sphere_inner: Vec<_> = (0..model.len())
+            .map(|s| {
+                let l = model.link[s] as usize;
+                (
+                    place(l, model.center[s]),
+                    (f(model.inner[s]) - MARGIN).max(0.0),
+                )
+            })
+            .collect();
         let bound_box = model
             .link_clusters
             .iter()
@@ -339,6 +351,7 @@ impl BatchChecker {
             link_clusters: model.link_clusters.clone(),
             cluster,
             sphere,
+            sphere_inner,
             objects: Vec::new(),
             object_boxes: Vec::new(),
             map: None,
@@ -463,15 +476,15 @@ impl BatchChecker {
     /// when `with_end`, first) is free: the states go eight at a time, coarse to fine
     /// (bisection order). Without `decide`, a batch the lanes flag is a collision. With it,
     /// each state of a flagged batch is checked again alone, and one the lanes still flag is
-    /// handed to `decide` (its number `k` of `n` steps: `a + k/n (b − a)`), which says whether
-    /// it is free after all; the first it does not clear ends the check.
+    /// handed to `decide` with this checker (its number `k` of `n` steps: `a + k/n (b − a)`),
+    /// which says whether it is free after all; the first it does not clear ends the check.
     pub fn motion_free(
         &mut self,
         robot: &Robot,
         resolution: f64,
         (a, b): (&[f64], &[f64]),
         with_end: bool,
-        decide: Option<impl FnMut(usize, usize) -> bool>,
+        decide: Option<impl FnMut(&mut BatchChecker, usize, usize) -> bool>,
     ) -> bool {
         // The states are a + (k / n) · delta; continuous joints need no wrapping here (the
         // kinematics only takes their sine and cosine).
@@ -501,6 +514,16 @@ impl BatchChecker {
         self.alone(|sut| sut.lanes_may_collide(None))
     }
 
+    /// True when configuration `q` surely touches something: the balls inside the geometry
+    /// ([`SphereModel::inner`](crate::robot::spheres::SphereModel::inner), less the margin),
+    /// down the same hierarchy, touch an object, the map or each other.
+    pub fn state_surely_collides(&mut self, q: &[f64]) -> bool {
+        std::mem::swap(&mut self.sphere, &mut self.sphere_inner);
+        let hit = self.state_may_collide(q);
+        std::mem::swap(&mut self.sphere, &mut self.sphere_inner);
+        hit
+    }
+
     /// `check` with the first lane marked as the only distinct one.
     #[inline]
     fn alone(&mut self, check: impl FnOnce(&mut Self) -> bool) -> bool {
@@ -515,7 +538,7 @@ impl BatchChecker {
         &mut self,
         n: usize,
         with_end: bool,
-        mut decide: Option<impl FnMut(usize, usize) -> bool>,
+        mut decide: Option<impl FnMut(&mut BatchChecker, usize, usize) -> bool>,
     ) -> bool {
         let mut batch = [0usize; LANES];
         let mut filled = 0;
@@ -554,14 +577,14 @@ impl BatchChecker {
         &mut self,
         n: usize,
         ks: &[usize],
-        decide: &mut Option<impl FnMut(usize, usize) -> bool>,
+        decide: &mut Option<impl FnMut(&mut BatchChecker, usize, usize) -> bool>,
     ) -> bool {
         let Some(decide) = decide else {
             return false;
         };
         ks.iter().all(|&k| {
             let alone = [k; LANES];
-            !self.alone(|sut| sut.lanes_may_collide(Some((&alone, n)))) || decide(k, n)
+            !self.alone(|sut| sut.lanes_may_collide(Some((&alone, n)))) || decide(self, k, n)
         })
     }
 

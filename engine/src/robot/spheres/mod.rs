@@ -108,6 +108,11 @@ pub struct SphereModel {
     pub center: Vec<[f64; 3]>,
     /// Radius, metres.
     pub radius: Vec<f64>,
+    /// Per sphere: the radius of a ball at the same centre that lies inside the link's
+    /// geometry (the fitter centres each sphere in a convex part, at most the protrusion
+    /// farther out than the part's boundary; a link given as balls is its own geometry).
+    /// Such a ball touching something means the geometry does.
+    pub inner: Vec<f64>,
     /// Per link (indexed like `Robot::links`): the range of its spheres.
     pub ranges: Vec<std::ops::Range<usize>>,
     /// Per link: a sphere (centre in the link frame, radius) containing all its spheres.
@@ -163,6 +168,12 @@ impl SphereModel {
             }
             s.to_vec()
         };
+        let balls_only = link.collision.iter().all(|s| {
+            matches!(
+                s.geometry,
+                super::Geometry::Primitive(crate::collision::Shape::Sphere { .. })
+            )
+        });
         let start = self.len();
         let cluster_start = self.clusters.len();
         let mut groups = Vec::new();
@@ -173,6 +184,11 @@ impl SphereModel {
                 self.link.push(index as u32);
                 self.center.push(c);
                 self.radius.push(r);
+                self.inner.push(if balls_only {
+                    r
+                } else {
+                    (r - protrusion).max(0.0)
+                });
             }
             let range = first..self.len();
             let (center, radius) =
