@@ -98,14 +98,18 @@ impl<'a> Validity<'a> {
     /// geometry says so.
     #[inline]
     pub fn is_valid(&mut self, q: &[f64]) -> bool {
-        match self.batch.take() {
-            Some(mut batch) => {
-                let free = !batch.state_may_collide(q) || self.exact_clears(Some(&mut batch), q);
-                self.batch = Some(batch);
-                free
-            }
-            None => self.spheres.is_valid(q) || self.exact_clears(None, q),
+        let spheres_free = match self.batch.as_mut() {
+            Some(batch) => !batch.state_may_collide(q),
+            None => self.spheres.is_valid(q),
+        };
+        if spheres_free {
+            return true;
         }
+        // Moved out only for a flagged state (the checker is large).
+        let mut batch = self.batch.take();
+        let free = self.exact_clears(batch.as_mut(), q);
+        self.batch = batch;
+        free
     }
 
     /// True when `q`, touched by the spheres, is near an anchor and free in the exact

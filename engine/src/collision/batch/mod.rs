@@ -16,7 +16,8 @@
 //! Radii are enlarged by [`MARGIN`] (0.1 mm, far above `f32` rounding at robot scale), so a
 //! batch found free is free for the scalar checker too, and a flagged batch is taken as a
 //! collision; near the exact fallback's anchors each state of a flagged batch is checked
-//! again alone, and only a state still flagged goes to the exact checker
+//! again alone, and only a state still flagged, whose balls inside the geometry
+//! ([`BatchChecker::state_surely_collides`]) touch nothing, goes to the exact checker
 //! ([`Validity`](crate::planning::validity::Validity) does). An occupancy map is one more
 //! obstacle down the same hierarchy: its [`Clearance`] grid clears most balls in one read per
 //! lane, and a sphere it cannot clear is decided by the map's voxels, lane by lane.
@@ -101,8 +102,9 @@ enum Shift {
 }
 
 /// What a remembered contact's sphere touched.
-/// Objects per group: the masks of a group's objects are one `u64`.
-const GROUP: usize = 64;
+/// Items one `u64` mask holds: objects go down the hierarchy in groups of this many, and a
+/// link's clusters meet another link's this many at a time.
+const MASK_BITS: usize = 64;
 
 /// The decision [`BatchChecker::motion_free`] is given when it has none.
 type NoDecision = fn(&mut BatchChecker, usize, usize) -> bool;
@@ -825,7 +827,7 @@ impl BatchChecker {
         }
         // Objects go in groups of 64 (one bit each in the masks below), the map with the
         // first; all but crowded scenes have one group.
-        for group in 0..self.objects.len().div_ceil(GROUP).max(1) {
+        for group in 0..self.objects.len().div_ceil(MASK_BITS).max(1) {
             let map = if group == 0 { map } else { None };
             if self.group_contact(group, map, grid) {
                 return true;
@@ -843,8 +845,8 @@ impl BatchChecker {
         map: Option<&OccupancyMap>,
         grid: Option<&Clearance>,
     ) -> bool {
-        let first = group * GROUP;
-        let end = self.objects.len().min(first + GROUP);
+        let first = group * MASK_BITS;
+        let end = self.objects.len().min(first + MASK_BITS);
         for k in 0..self.moving.len() {
             let l = self.moving[k];
             self.place_bound(l);
@@ -906,7 +908,7 @@ impl BatchChecker {
     /// penetrates in some lane, as bits: world boxes first, then the shapes.
     #[inline(always)]
     fn objects_reached(&self, group: usize, b: [F8; 3], br: f32) -> u64 {
-        let first = group * GROUP;
+        let first = group * MASK_BITS;
         if self.objects.len() <= first {
             return 0;
         }
@@ -914,7 +916,7 @@ impl BatchChecker {
         let hi = b.map(|v| v.hmax() + br);
         let mut cand = 0u64;
         let boxes = &self.object_boxes[first / LANES..];
-        for (block, (olo, ohi)) in boxes.iter().take(GROUP / LANES).enumerate() {
+        for (block, (olo, ohi)) in boxes.iter().take(MASK_BITS / LANES).enumerate() {
             let reach = boxes_overlapping(olo, ohi, lo, hi, self.avx2);
             cand |= (reach as u64) << (block * LANES);
         }
@@ -934,8 +936,8 @@ impl BatchChecker {
             }
             // `b`'s clusters go 64 at a time (one per bit); most links have one such group.
             let clusters_b = self.link_clusters[b].clone();
-            for first in clusters_b.clone().step_by(64) {
-                let group = first..clusters_b.end.min(first + 64);
+            for first in clusters_b.clone().step_by(MASK_BITS) {
+                let group = first..clusters_b.end.min(first + MASK_BITS);
                 if self.clusters_touch((a, ba, ra), (b, bb, rb), group) {
                     return true;
                 }

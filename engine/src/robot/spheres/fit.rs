@@ -116,11 +116,9 @@ pub fn surface_area(shapes: &[LinkShape]) -> f64 {
         .sum()
 }
 
-/// Spheres covering the surface of `shapes` (one link, link frame) with protrusion at most
-/// `protrusion`. Deterministic.
-pub fn fit(shapes: &[LinkShape], protrusion: f64) -> Vec<Sphere> {
-    // Balls are their own best model: a link described by spheres alone (a spherized URDF, as
-    // VAMP's and cuRobo's robots are) keeps them exactly, with no protrusion.
+/// The balls `shapes` (one link, link frame) consist of, when they are balls alone (and not
+/// none): such a link is its own sphere model.
+pub fn balls(shapes: &[LinkShape]) -> Option<Vec<Sphere>> {
     let balls: Option<Vec<Sphere>> = shapes
         .iter()
         .map(|s| match s.geometry {
@@ -131,7 +129,15 @@ pub fn fit(shapes: &[LinkShape], protrusion: f64) -> Vec<Sphere> {
             _ => None,
         })
         .collect();
-    if let Some(balls) = balls.filter(|b| !b.is_empty()) {
+    balls.filter(|b| !b.is_empty())
+}
+
+/// Spheres covering the surface of `shapes` (one link, link frame) with protrusion at most
+/// `protrusion`. Deterministic.
+pub fn fit(shapes: &[LinkShape], protrusion: f64) -> Vec<Sphere> {
+    // Balls are their own best model: a link described by spheres alone (a spherized URDF, as
+    // VAMP's and cuRobo's robots are) keeps them exactly, with no protrusion.
+    if let Some(balls) = balls(shapes) {
         return balls;
     }
     let parts: Vec<Part> = shapes.iter().map(Part::new).collect();

@@ -168,12 +168,7 @@ impl SphereModel {
             }
             s.to_vec()
         };
-        let balls_only = link.collision.iter().all(|s| {
-            matches!(
-                s.geometry,
-                super::Geometry::Primitive(crate::collision::Shape::Sphere { .. })
-            )
-        });
+        let balls_only = fit::balls(&link.collision).is_some();
         let start = self.len();
         let cluster_start = self.clusters.len();
         let mut groups = Vec::new();
