@@ -711,11 +711,8 @@ impl BatchChecker {
             let s = s * F8::splat(turn.sign);
             match turn.columns {
                 None => turn_columns(Some(&parent.r), &mut at.r, turn.axes, (s, c)),
-                // The parent's columns permuted by the quarter turns, then turned in place.
-                Some(columns) => {
-                    permute_columns(&parent.r, &mut at.r, columns);
-                    turn_columns(None, &mut at.r, turn.axes, (s, c));
-                }
+                // The parent's columns permuted by the quarter turns and turned, in one pass.
+                Some(columns) => turn_permuted(&parent.r, &mut at.r, columns, turn.axes, (s, c)),
             }
             return;
         }
@@ -1145,6 +1142,46 @@ fn turn_columns_of<const I: usize, const J: usize, const K: usize>(
         if let Some(f) = from {
             to[row * 3 + K] = f[row * 3 + K];
         }
+    }
+}
+
+/// `to` = `from` with its columns permuted by `columns` (as [`permute_columns`]), then turned
+/// as [`turn_columns`] turns them, in one pass: the permutation's signs go into the sine and
+/// cosine (products by ±1, exact), and each column is read from `from` where it lies, so no
+/// permuted copy is written and read back.
+#[inline(always)]
+fn turn_permuted(
+    from: &[F8; 9],
+    to: &mut [F8; 9],
+    columns: [(usize, f32); 3],
+    axes: [usize; 2],
+    sc: (F8, F8),
+) {
+    match axes {
+        [1, 2] => turn_permuted_of::<1, 2, 0>(from, to, columns, sc),
+        [2, 0] => turn_permuted_of::<2, 0, 1>(from, to, columns, sc),
+        _ => turn_permuted_of::<0, 1, 2>(from, to, columns, sc),
+    }
+}
+
+#[inline(always)]
+fn turn_permuted_of<const I: usize, const J: usize, const K: usize>(
+    from: &[F8; 9],
+    to: &mut [F8; 9],
+    columns: [(usize, f32); 3],
+    (s, c): (F8, F8),
+) {
+    let ((i, sign_i), (j, sign_j), (k, sign_k)) = (columns[I], columns[J], columns[K]);
+    // Column numbers (below 3), said so: the reads below need no bounds checks.
+    let (i, j, k) = (i.min(2), j.min(2), k.min(2));
+    let (sign_i, sign_j) = (F8::splat(sign_i), F8::splat(sign_j));
+    let (c_i, s_i, c_j, s_j) = (c * sign_i, s * sign_i, c * sign_j, s * sign_j);
+    let sign_k = F8::splat(sign_k);
+    for row in 0..3 {
+        let (a, b) = (from[row * 3 + i], from[row * 3 + j]);
+        to[row * 3 + I] = a.mul_add(c_i, b * s_j);
+        to[row * 3 + J] = b.mul_sub(c_j, a * s_i);
+        to[row * 3 + K] = from[row * 3 + k] * sign_k;
     }
 }
 
