@@ -272,6 +272,22 @@ fn random_map(rng: &mut impl rand::Rng) -> std::sync::Arc<ember_engine::world::m
     std::sync::Arc::new(map)
 }
 
+/// A random scene of `n` objects, with a random map when `with_map`, for the batch checker:
+/// `None` when the robot's base touches an object (the scalar checker decides that once,
+/// exactly, and the planner does not use the batch checker then).
+fn batch_scene(
+    rng: &mut impl rand::Rng,
+    robot: &Robot,
+    n: usize,
+    with_map: bool,
+) -> Option<Environment> {
+    let mut env = random_scene(rng, n);
+    if with_map {
+        env.set_map(Some(random_map(rng)));
+    }
+    (!SphereChecker::new(robot, &env).blocked()).then_some(env)
+}
+
 /// The eight-lane checker against the scalar one (the oracle) on random scenes and
 /// configurations, half of them with an occupancy map: it never misses a contact the scalar
 /// checker finds, and it flags a free configuration only at the margin's edge (rarely).
@@ -287,16 +303,11 @@ fn batch_checker_agrees_with_the_scalar_checker() {
         let dof = robot.dof();
         let (mut configs, mut contacts, mut extra) = (0, 0, 0);
         for scene in 0..30 {
-            let mut env = random_scene(&mut rng, (4 + scene % 6) * (scene % 3).min(1));
-            if scene % 3 != 1 {
-                env.set_map(Some(random_map(&mut rng)));
-            }
-            let mut scalar = SphereChecker::new(&robot, &env);
-            if scalar.blocked() {
-                // The base touches an object: decided once, exactly, by the scalar checker;
-                // the batch checker is not used then.
+            let objects = (4 + scene % 6) * (scene % 3).min(1);
+            let Some(env) = batch_scene(&mut rng, &robot, objects, scene % 3 != 1) else {
                 continue;
-            }
+            };
+            let mut scalar = SphereChecker::new(&robot, &env);
             let mut batch = BatchChecker::new(&robot, &env);
             let mut q = vec![vec![0.0; dof]; 8];
             for _ in 0..150 {
@@ -365,13 +376,9 @@ fn batch_checker_with_a_history_answers_as_a_fresh_one() {
         let dof = robot.dof();
         let (mut batches, mut contacts) = (0, 0);
         for scene in 0..12 {
-            let mut env = random_scene(&mut rng, 6 + scene % 5);
-            if scene % 2 == 0 {
-                env.set_map(Some(random_map(&mut rng)));
-            }
-            if SphereChecker::new(&robot, &env).blocked() {
+            let Some(env) = batch_scene(&mut rng, &robot, 6 + scene % 5, scene % 2 == 0) else {
                 continue;
-            }
+            };
             let mut batch = BatchChecker::new(&robot, &env);
             let mut q = vec![0.0; dof];
             robot.sample_uniform(&mut rng, &mut q);
@@ -414,11 +421,9 @@ fn a_decided_motion_asks_about_each_state_the_lanes_flag_alone() {
     let dof = robot.dof();
     let (mut motions, mut decided) = (0, 0);
     for scene in 0..10 {
-        let mut env = random_scene(&mut rng, 5 + scene % 4);
-        env.set_map(Some(random_map(&mut rng)));
-        if SphereChecker::new(&robot, &env).blocked() {
+        let Some(env) = batch_scene(&mut rng, &robot, 5 + scene % 4, true) else {
             continue;
-        }
+        };
         let mut batch = BatchChecker::new(&robot, &env);
         let (mut a, mut b) = (vec![0.0; dof], vec![0.0; dof]);
         for _ in 0..20 {
@@ -488,13 +493,9 @@ fn balls_inside_the_geometry_touch_only_what_it_touches() {
         let mut q = vec![0.0; robot.dof()];
         let (mut sure, mut contacts) = (0, 0);
         for scene in 0..24 {
-            let mut env = random_scene(&mut rng, 4 + scene % 6);
-            if scene % 2 == 0 {
-                env.set_map(Some(random_map(&mut rng)));
-            }
-            if SphereChecker::new(&robot, &env).blocked() {
+            let Some(env) = batch_scene(&mut rng, &robot, 4 + scene % 6, scene % 2 == 0) else {
                 continue;
-            }
+            };
             let mut batch = BatchChecker::new(&robot, &env);
             let mut exact = ExactChecker::new(&robot, &env);
             for _ in 0..100 {

@@ -101,7 +101,6 @@ enum Shift {
     General,
 }
 
-/// What a remembered contact's sphere touched.
 /// Items one `u64` mask holds: objects go down the hierarchy in groups of this many, and a
 /// link's clusters meet another link's this many at a time.
 const MASK_BITS: usize = 64;
@@ -109,6 +108,7 @@ const MASK_BITS: usize = 64;
 /// The decision [`BatchChecker::motion_free`] is given when it has none.
 type NoDecision = fn(&mut BatchChecker, usize, usize) -> bool;
 
+/// What a remembered contact's sphere touched.
 #[derive(Clone, Copy)]
 enum Touched {
     /// An object, by number.
