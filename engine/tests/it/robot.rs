@@ -16,7 +16,7 @@ use ember_engine::world::{Environment, Object};
 use ember_engine::Pose;
 use testbot::Testbot;
 
-fn spec(bot: &Testbot) -> RobotSpec {
+pub(crate) fn spec(bot: &Testbot) -> RobotSpec {
     RobotSpec {
         robot: bot.urdf.display().to_string(),
         srdf: Some(bot.srdf.clone()),

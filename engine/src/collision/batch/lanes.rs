@@ -148,46 +148,39 @@ impl F8 {
     }
 
     /// Sine and cosine of every lane, for angles of a few turns at most (joint values):
-    /// reduction by π/2 in two parts, then Taylor polynomials on [-π/4, π/4] (error below
-    /// 1e-7, the `f32` rounding).
+    /// reduction by π in two parts to [-π/2, π/2], then minimax polynomials there (error
+    /// below 1e-7, the `f32` rounding); an odd multiple of π flips both signs.
     #[inline(always)]
     pub fn sin_cos(self) -> (F8, F8) {
-        const TWO_OVER_PI: f32 = std::f32::consts::FRAC_2_PI;
-        const PI_2_HI: f32 = 1.570_796_4;
-        const PI_2_LO: f32 = -4.371_139e-8;
+        const ONE_OVER_PI: f32 = std::f32::consts::FRAC_1_PI;
+        const PI_HI: f32 = std::f32::consts::PI;
+        const PI_LO: f32 = -8.742_278e-8;
+        // sin r = r + r³·S(r²), cos r = 1 + r²·C(r²): near-minimax on [-π/2, π/2].
+        const S: [f32; 4] = [
+            -0.166_666_57,
+            0.008_333_017,
+            -0.000_198_066_16,
+            2.600_058e-6,
+        ];
+        const C: [f32; 4] = [-0.499_999_3, 0.041_663_99, -0.001_385_592_9, 2.319_442_5e-5];
         let mut s = [0.0; LANES];
         let mut c = [0.0; LANES];
         for k in 0..LANES {
             let x = self.0[k];
-            let n = (x * TWO_OVER_PI).round_ties_even();
-            let r = n.mul_add(-PI_2_LO, n.mul_add(-PI_2_HI, x));
+            let n = (x * ONE_OVER_PI).round_ties_even();
+            let r = n.mul_add(-PI_LO, n.mul_add(-PI_HI, x));
             let r2 = r * r;
-            let sin_r = r * r2.mul_add(
-                r2.mul_add(
-                    r2.mul_add(r2.mul_add(1.0 / 362_880.0, -1.0 / 5040.0), 1.0 / 120.0),
-                    -1.0 / 6.0,
-                ),
-                1.0,
-            );
+            let sp = r2.mul_add(r2.mul_add(r2.mul_add(S[3], S[2]), S[1]), S[0]);
+            let sin_r = (r * r2).mul_add(sp, r);
             let cos_r = r2.mul_add(
-                r2.mul_add(
-                    r2.mul_add(
-                        r2.mul_add(r2.mul_add(-1.0 / 3_628_800.0, 1.0 / 40_320.0), -1.0 / 720.0),
-                        1.0 / 24.0,
-                    ),
-                    -0.5,
-                ),
+                r2.mul_add(r2.mul_add(r2.mul_add(C[3], C[2]), C[1]), C[0]),
                 1.0,
             );
-            // Quadrant n mod 4, read from the low bits of n + 1.5·2²³ (whose last mantissa bits
-            // are n's in two's complement), in integer lanes: odd quadrants swap sine and
-            // cosine; sine changes sign in quadrants 2 and 3, cosine in 1 and 2 (its bit 1
-            // of n + 1), by flipping the sign bit, as negation does.
-            let m = (n + 12_582_912.0).to_bits();
-            let odd = m & 1 != 0;
-            let (a, b) = if odd { (cos_r, sin_r) } else { (sin_r, cos_r) };
-            s[k] = f32::from_bits(a.to_bits() ^ ((m & 2) << 30));
-            c[k] = f32::from_bits(b.to_bits() ^ ((m.wrapping_add(1) & 2) << 30));
+            // The parity of n, read from the last mantissa bit of n + 1.5·2²³ (n's in two's
+            // complement) and moved to the sign bit: flipping it is negation.
+            let flip = (n + 12_582_912.0).to_bits() << 31;
+            s[k] = f32::from_bits(sin_r.to_bits() ^ flip);
+            c[k] = f32::from_bits(cos_r.to_bits() ^ flip);
         }
         (F8(s), F8(c))
     }

@@ -72,6 +72,8 @@ struct Joint8 {
     variable: usize,
     /// The same, when it is the common joint (see [`AxisTurn`]).
     turn: Option<AxisTurn>,
+    /// The same, when it is a slide along a coordinate axis (see [`AxisSlide`]).
+    slide: Option<AxisSlide>,
 }
 
 /// The common joint, recognised once: a turn about a coordinate axis, behind an origin whose
@@ -90,6 +92,21 @@ struct AxisTurn {
     axes: [usize; 2],
     sign: f32,
     variable: usize,
+}
+
+/// A slide along a coordinate axis behind an origin that only shifts (a torso lift): the
+/// parent's rotation, copied (or written once, when no turn lies above it), and the parent's
+/// translation shifted along one of its axes by the variable.
+#[derive(Clone, Copy)]
+struct AxisSlide {
+    parent: usize,
+    shift: Shift,
+    /// The parent's axis it slides along (below 3), and its sign.
+    axis: usize,
+    sign: f32,
+    variable: usize,
+    /// True when no turn lies above it: its rotation never changes.
+    fixed_rotation: bool,
 }
 
 /// An origin's translation, sorted by the work it takes.
@@ -241,23 +258,42 @@ impl BatchChecker {
                 Turn::Axes(columns) => Some(Some(columns)),
                 Turn::General => None,
             };
+            let nonzero: Vec<usize> = (0..3).filter(|&k| origin.t[k] != 0.0).collect();
+            let shift = match nonzero[..] {
+                [] => Shift::None,
+                [k] => Shift::Along(k, origin.t[k]),
+                _ => Shift::General,
+            };
             let turn = match (k, parent, columns) {
-                (Kind::RevoluteAxis(axes, sign), Some(parent), Some(columns)) => {
-                    let nonzero: Vec<usize> = (0..3).filter(|&k| origin.t[k] != 0.0).collect();
-                    let shift = match nonzero[..] {
-                        [] => Shift::None,
-                        [k] => Shift::Along(k, origin.t[k]),
-                        _ => Shift::General,
-                    };
-                    Some(AxisTurn {
+                (Kind::RevoluteAxis(axes, sign), Some(parent), Some(columns)) => Some(AxisTurn {
+                    parent,
+                    shift,
+                    columns,
+                    axes,
+                    sign,
+                    variable: v,
+                }),
+                _ => None,
+            };
+            let along = |a: [f32; 3]| (0..3).find(|&k| a[k].abs() == 1.0);
+            let slide = match (k, parent, origin.turn) {
+                (Kind::Prismatic(a), Some(parent), Turn::Identity) => along(a).map(|axis| {
+                    // Parents come first: a parent's rotation is fixed when it does not move
+                    // or is itself a slide with a fixed rotation.
+                    let fixed_rotation = !robot.link_moves(parent)
+                        || joints8
+                            .get(parent)
+                            .and_then(|j: &Joint8| j.slide)
+                            .is_some_and(|s| s.fixed_rotation);
+                    AxisSlide {
                         parent,
                         shift,
-                        columns,
-                        axes,
-                        sign,
+                        axis,
+                        sign: a[axis],
                         variable: v,
-                    })
-                }
+                        fixed_rotation,
+                    }
+                }),
                 _ => None,
             };
             joints8.push(Joint8 {
@@ -266,6 +302,7 @@ impl BatchChecker {
                 kind: k,
                 variable: v,
                 turn,
+                slide,
             });
         }
         // Sphere-model points in the frame their link rides in.
@@ -380,6 +417,13 @@ impl BatchChecker {
         for (l, &m) in moves.iter().enumerate() {
             if !m && sut.frame[l] == l {
                 sut.fk_link(l);
+            }
+        }
+        // The slides' fixed rotations, their parents' (parents first): batches leave them.
+        for k in 0..sut.posed.len() {
+            let l = sut.posed[k];
+            if let Some(slide) = sut.joints[l].slide.filter(|s| s.fixed_rotation) {
+                sut.poses[l].r = sut.poses[slide.parent].r;
             }
         }
         sut.epoch = STATIC;
@@ -695,18 +739,25 @@ impl BatchChecker {
         let origin = &joint.origin;
         let (done, rest) = self.poses.split_at_mut(l);
         let at = &mut rest[0];
+        if let Some(slide) = &joint.slide {
+            let parent = &done[slide.parent];
+            if !slide.fixed_rotation {
+                // Row by row: a copy of the 288-byte rotation was a call to `memcpy`.
+                for (to, from) in at.r.iter_mut().zip(&parent.r) {
+                    *to = *from;
+                }
+            }
+            shift(origin, slide.shift, parent, at);
+            let v = self.lanes[slide.variable] * F8::splat(slide.sign);
+            let k = slide.axis.min(2);
+            for row in 0..3 {
+                at.t[row] = parent.r[row * 3 + k].mul_add(v, at.t[row]);
+            }
+            return;
+        }
         if let Some(turn) = &joint.turn {
             let parent = &done[turn.parent];
-            // The same arithmetic as `Origin::translate` (zero components skipped).
-            match turn.shift {
-                Shift::None => at.t = parent.t,
-                Shift::Along(k, v) => {
-                    let v = F8::splat(v);
-                    at.t =
-                        std::array::from_fn(|row| parent.r[row * 3 + k].mul_add(v, parent.t[row]));
-                }
-                Shift::General => origin.translate(parent, at),
-            }
+            shift(origin, turn.shift, parent, at);
             let (s, c) = self.lanes[turn.variable].sin_cos();
             let s = s * F8::splat(turn.sign);
             match turn.columns {
@@ -1097,6 +1148,20 @@ impl Origin {
             Turn::Axes(axes) => permute_columns(a, out, axes),
             Turn::General => *out = Pose8::splat(self.r, [0.0; 3]).r_after(a),
         }
+    }
+}
+
+/// `at.t` = the translation of `parent · origin`, its kind `shift` recognised beforehand: the
+/// same arithmetic as [`Origin::translate`] (zero components skipped).
+#[inline(always)]
+fn shift(origin: &Origin, shift: Shift, parent: &Pose8, at: &mut Pose8) {
+    match shift {
+        Shift::None => at.t = parent.t,
+        Shift::Along(k, v) => {
+            let (k, v) = (k.min(2), F8::splat(v));
+            at.t = std::array::from_fn(|row| parent.r[row * 3 + k].mul_add(v, parent.t[row]));
+        }
+        Shift::General => origin.translate(parent, at),
     }
 }
 
