@@ -115,6 +115,8 @@ enum Shift {
     None,
     /// Along the parent's axis `k` by `v` (the other components zero).
     Along(usize, f32),
+    /// Along two of the parent's axes (`k` first, the lower), the third component zero.
+    AlongTwo([(usize, f32); 2]),
     General,
 }
 
@@ -262,6 +264,7 @@ impl BatchChecker {
             let shift = match nonzero[..] {
                 [] => Shift::None,
                 [k] => Shift::Along(k, origin.t[k]),
+                [k, l] => Shift::AlongTwo([(k, origin.t[k]), (l, origin.t[l])]),
                 _ => Shift::General,
             };
             let turn = match (k, parent, columns) {
@@ -1160,6 +1163,14 @@ fn shift(origin: &Origin, shift: Shift, parent: &Pose8, at: &mut Pose8) {
         Shift::Along(k, v) => {
             let (k, v) = (k.min(2), F8::splat(v));
             at.t = std::array::from_fn(|row| parent.r[row * 3 + k].mul_add(v, parent.t[row]));
+        }
+        Shift::AlongTwo([(k, v), (l, w)]) => {
+            // A loop, not `array::from_fn`: its closure was left uninlined (without AVX2).
+            let (k, l, v, w) = (k.min(2), l.min(2), F8::splat(v), F8::splat(w));
+            for row in 0..3 {
+                let t = parent.r[row * 3 + k].mul_add(v, parent.t[row]);
+                at.t[row] = parent.r[row * 3 + l].mul_add(w, t);
+            }
         }
         Shift::General => origin.translate(parent, at),
     }
