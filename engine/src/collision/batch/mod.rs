@@ -278,7 +278,10 @@ impl BatchChecker {
                 }),
                 _ => None,
             };
-            let along = |a: [f32; 3]| (0..3).find(|&k| a[k].abs() == 1.0);
+            // A coordinate axis exactly (the other components zero), as `f32` gives it.
+            let along = |a: [f32; 3]| {
+                (0..3).find(|&k| a[k].abs() == 1.0 && (0..3).all(|m| m == k || a[m] == 0.0))
+            };
             let slide = match (k, parent, origin.turn) {
                 (Kind::Prismatic(a), Some(parent), Turn::Identity) => along(a).map(|axis| {
                     // Parents come first: a parent's rotation is fixed when it does not move
