@@ -1163,12 +1163,15 @@ impl Origin {
 fn shift(origin: &Origin, shift: Shift, parent: &Pose8, at: &mut Pose8) {
     match shift {
         Shift::None => at.t = parent.t,
+        // Loops, not `array::from_fn`: its closures were left uninlined (so without AVX2)
+        // once the batch checker grew.
         Shift::Along(k, v) => {
             let (k, v) = (k.min(2), F8::splat(v));
-            at.t = std::array::from_fn(|row| parent.r[row * 3 + k].mul_add(v, parent.t[row]));
+            for row in 0..3 {
+                at.t[row] = parent.r[row * 3 + k].mul_add(v, parent.t[row]);
+            }
         }
         Shift::AlongTwo([(k, v), (l, w)]) => {
-            // A loop, not `array::from_fn`: its closure was left uninlined (without AVX2).
             let (k, l, v, w) = (k.min(2), l.min(2), F8::splat(v), F8::splat(w));
             for row in 0..3 {
                 let t = parent.r[row * 3 + k].mul_add(v, parent.t[row]);
