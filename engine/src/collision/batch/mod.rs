@@ -41,10 +41,11 @@ use lanes::{boxes_overlapping, edge_lanes, has_avx2, Pose8, ALL_LANES, F8, LANES
 use std::sync::Arc;
 
 /// Environment contacts remembered and tried first in the next batch (see
-/// [`BatchChecker::env_contact_with`]). Four end 40–80% of the batches on the
-/// MotionBenchMaker Fetch sets (`ember-bench plan`'s `remembered_pct`); more find more but
-/// cost more when they miss.
-const RECENT: usize = 4;
+/// [`BatchChecker::env_contact_with`]). Eight end 58–94% of the batches on the
+/// MotionBenchMaker Fetch sets (`ember-bench plan`'s `remembered_pct`; four ended 48–83%, and
+/// took 1.6–5.8% more search instructions on every Fetch set); twelve or sixteen find more
+/// but cost the short table searches more when they miss.
+const RECENT: usize = 8;
 
 /// Stamp of placements that never change (links that do not move).
 const STATIC: u32 = u32::MAX;
@@ -722,7 +723,7 @@ impl BatchChecker {
     }
 
     /// Moves the remembered contacts before `k` one place back and puts `contact` first.
-    /// (A loop over four entries: `rotate_right` was a call costing as much as a test.)
+    /// (A loop over the entries: `rotate_right` was a call costing as much as a test.)
     #[inline(always)]
     fn bring_forward(&mut self, k: usize, contact: Option<(usize, usize, Touched)>) {
         for i in (1..=k.min(RECENT - 1)).rev() {
