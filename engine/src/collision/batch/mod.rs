@@ -41,10 +41,10 @@ use lanes::{boxes_overlapping, edge_lanes, has_avx2, Pose8, ALL_LANES, F8, LANES
 use std::sync::Arc;
 
 /// Environment contacts remembered and tried first in the next batch (see
-/// [`BatchChecker::env_contact_with`]). Eight end 58–94% of the batches on the
-/// MotionBenchMaker Fetch sets (`ember-bench plan`'s `remembered_pct`; four ended 48–83%, and
-/// took 1.6–5.8% more search instructions on every Fetch set); twelve or sixteen find more
-/// but cost the short table searches more when they miss.
+/// [`BatchChecker::env_contact_with`]). Eight end 43–91% of the batches on the
+/// MotionBenchMaker Fetch sets at seed 0 (`ember-bench plan`'s `remembered_pct`; four ended
+/// 40–80%, and took 1.6–5.8% more search instructions on every Fetch set); twelve or sixteen
+/// find more but cost the short table searches more when they miss.
 const RECENT: usize = 8;
 
 /// Stamp of placements that never change (links that do not move).
