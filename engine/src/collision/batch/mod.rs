@@ -244,13 +244,13 @@ impl BatchChecker {
             let (k, v) = match &link.motion {
                 Motion::Fixed => (Kind::Fixed, 0),
                 Motion::Revolute { axis: a, variable } => {
-                    let along = (0..3).find(|&k| (a[k].abs() - 1.0).abs() < 1e-12);
-                    match along {
+                    let a = axis(a);
+                    match coordinate_axis(a) {
                         Some(k) => (
-                            Kind::RevoluteAxis([(k + 1) % 3, (k + 2) % 3], a[k].signum() as f32),
+                            Kind::RevoluteAxis([(k + 1) % 3, (k + 2) % 3], a[k].signum()),
                             *variable,
                         ),
-                        None => (Kind::Revolute(axis(a)), *variable),
+                        None => (Kind::Revolute(a), *variable),
                     }
                 }
                 Motion::Prismatic { axis: a, variable } => (Kind::Prismatic(axis(a)), *variable),
@@ -279,28 +279,26 @@ impl BatchChecker {
                 }),
                 _ => None,
             };
-            // A coordinate axis exactly (the other components zero), as `f32` gives it.
-            let along = |a: [f32; 3]| {
-                (0..3).find(|&k| a[k].abs() == 1.0 && (0..3).all(|m| m == k || a[m] == 0.0))
-            };
             let slide = match (k, parent, origin.turn) {
-                (Kind::Prismatic(a), Some(parent), Turn::Identity) => along(a).map(|axis| {
-                    // Parents come first: a parent's rotation is fixed when it does not move
-                    // or is itself a slide with a fixed rotation.
-                    let fixed_rotation = !robot.link_moves(parent)
-                        || joints8
-                            .get(parent)
-                            .and_then(|j: &Joint8| j.slide)
-                            .is_some_and(|s| s.fixed_rotation);
-                    AxisSlide {
-                        parent,
-                        shift,
-                        axis,
-                        sign: a[axis],
-                        variable: v,
-                        fixed_rotation,
-                    }
-                }),
+                (Kind::Prismatic(a), Some(parent), Turn::Identity) => {
+                    coordinate_axis(a).map(|axis| {
+                        // Parents come first: a parent's rotation is fixed when it does not move
+                        // or is itself a slide with a fixed rotation.
+                        let fixed_rotation = !robot.link_moves(parent)
+                            || joints8
+                                .get(parent)
+                                .and_then(|j: &Joint8| j.slide)
+                                .is_some_and(|s| s.fixed_rotation);
+                        AxisSlide {
+                            parent,
+                            shift,
+                            axis,
+                            sign: a[axis],
+                            variable: v,
+                            fixed_rotation,
+                        }
+                    })
+                }
                 _ => None,
             };
             joints8.push(Joint8 {
@@ -1306,6 +1304,12 @@ fn next_overlapping(
         }
     }
     None
+}
+
+/// The coordinate axis that joint axis `a` lies along exactly (its other components zero, as
+/// `f32` gives them), if any: such a turn or slide touches two columns or one (see [`Kind`]).
+fn coordinate_axis(a: [f32; 3]) -> Option<usize> {
+    (0..3).find(|&k| a[k].abs() == 1.0 && (0..3).all(|m| m == k || a[m] == 0.0))
 }
 
 /// True when balls `(a, ra)` and `(b, rb)` overlap in some lane.
