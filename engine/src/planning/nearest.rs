@@ -149,6 +149,7 @@ impl NearestIndex {
     /// `target` than `radius[i]` (where given) its exact distance is not computed: `(i, None)`.
     /// (A dynamic-domain search rejects most samples so, on the distance the lanes found,
     /// which is far closer than the margin taken here.)
+    #[inline]
     pub fn nearest_unless_beyond(
         &mut self,
         target: &[f64],
@@ -159,7 +160,18 @@ impl NearestIndex {
             // SAFETY: the CPU has AVX2 (checked at construction).
             return unsafe { self.nearest_avx2(target, radius) };
         }
-        self.nearest_any(target, radius)
+        self.nearest_portable(target, radius)
+    }
+
+    /// [`NearestIndex::nearest_unless_beyond`] without AVX2, kept out of line so the query
+    /// above stays a test and a call where the planner inlines it.
+    #[inline(never)]
+    fn nearest_portable(
+        &mut self,
+        target: &[f64],
+        radius: &[f64],
+    ) -> Option<(u32, Option<f64>)> {
+        self.nearest_any::<false>(target, radius)
     }
 
     /// [`NearestIndex::nearest_unless_beyond`] compiled for AVX2 as a whole: the query's set-up
@@ -171,25 +183,30 @@ impl NearestIndex {
         target: &[f64],
         radius: &[f64],
     ) -> Option<(u32, Option<f64>)> {
-        self.nearest_any(target, radius)
+        self.nearest_any::<true>(target, radius)
     }
 
+    /// The query; `AVX2` when compiled inside [`NearestIndex::nearest_avx2`].
     #[inline(always)]
-    fn nearest_any(&mut self, target: &[f64], radius: &[f64]) -> Option<(u32, Option<f64>)> {
+    fn nearest_any<const AVX2: bool>(
+        &mut self,
+        target: &[f64],
+        radius: &[f64],
+    ) -> Option<(u32, Option<f64>)> {
         // The common arm sizes get their number of joints known: the query's set-up and the
         // answer's exact distance unrolled, without bounds checks (they had cost more than
         // the distance kernel on small trees).
         match self.dof {
-            6 => self.nearest_of::<6>(target, radius),
-            7 => self.nearest_of::<7>(target, radius),
-            8 => self.nearest_of::<8>(target, radius),
-            _ => self.nearest_of::<0>(target, radius),
+            6 => self.nearest_of::<6, AVX2>(target, radius),
+            7 => self.nearest_of::<7, AVX2>(target, radius),
+            8 => self.nearest_of::<8, AVX2>(target, radius),
+            _ => self.nearest_of::<0, AVX2>(target, radius),
         }
     }
 
     /// [`NearestIndex::nearest_unless_beyond`] over `DOF` joints (all of them when `DOF` is 0).
     #[inline(always)]
-    fn nearest_of<const DOF: usize>(
+    fn nearest_of<const DOF: usize, const AVX2: bool>(
         &mut self,
         target: &[f64],
         radius: &[f64],
@@ -213,6 +230,11 @@ impl NearestIndex {
             }
         }
         // The lanes chose; the exact coordinates give the distance.
+        #[cfg(target_arch = "x86_64")]
+        if AVX2 && (DOF == 6 || DOF == 7 || DOF == 8) {
+            // SAFETY: `AVX2` only inside `nearest_avx2`, which the CPU can run.
+            return Some((id, Some(unsafe { self.exact_dist2_avx2::<DOF>(leaf, k) })));
+        }
         Some((id, Some(self.exact_dist2::<DOF>(leaf, k))))
     }
 
@@ -358,6 +380,47 @@ impl NearestIndex {
             let around = period[j] - d;
             let d = if around < d { around } else { d };
             d2 += d * d;
+        }
+        d2
+    }
+
+    /// [`NearestIndex::exact_dist2`] for 6 to 8 joints, the squared differences four joints
+    /// per instruction and summed in joint order (the same value, bit for bit: each term is
+    /// the same operations, and the sum's order is kept).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    unsafe fn exact_dist2_avx2<const DOF: usize>(&self, leaf: usize, k: usize) -> f64 {
+        use std::arch::x86_64::*;
+        const { assert!(DOF <= 8) };
+        let k = k.min(SLOTS - 1);
+        let point = &self.coords[leaf * SLOTS * DOF..][..SLOTS * DOF];
+        let (q, period) = (&self.target[..DOF], &self.period[..DOF]);
+        // Joints past DOF hold zeros: their terms are zero and not summed.
+        let (mut p8, mut q8, mut t8) = ([0.0f64; 8], [0.0f64; 8], [f64::INFINITY; 8]);
+        for j in 0..DOF {
+            p8[j] = point[j * SLOTS + k];
+            q8[j] = q[j];
+            t8[j] = period[j];
+        }
+        let sign = _mm256_set1_pd(-0.0);
+        let terms = |at: usize| {
+            let d = _mm256_sub_pd(
+                _mm256_loadu_pd(q8.as_ptr().add(at)),
+                _mm256_loadu_pd(p8.as_ptr().add(at)),
+            );
+            let d = _mm256_andnot_pd(sign, d);
+            // `around < d ? around : d`, as the scalar code chooses.
+            let around = _mm256_sub_pd(_mm256_loadu_pd(t8.as_ptr().add(at)), d);
+            let d = _mm256_min_pd(around, d);
+            _mm256_mul_pd(d, d)
+        };
+        let mut t = [0.0f64; 8];
+        _mm256_storeu_pd(t.as_mut_ptr(), terms(0));
+        _mm256_storeu_pd(t.as_mut_ptr().add(4), terms(4));
+        let mut d2 = 0.0;
+        for term in &t[..DOF] {
+            d2 += term;
         }
         d2
     }
