@@ -166,11 +166,7 @@ impl NearestIndex {
     /// [`NearestIndex::nearest_unless_beyond`] without AVX2, kept out of line so the query
     /// above stays a test and a call where the planner inlines it.
     #[inline(never)]
-    fn nearest_portable(
-        &mut self,
-        target: &[f64],
-        radius: &[f64],
-    ) -> Option<(u32, Option<f64>)> {
+    fn nearest_portable(&mut self, target: &[f64], radius: &[f64]) -> Option<(u32, Option<f64>)> {
         self.nearest_any::<false>(target, radius)
     }
 

@@ -386,6 +386,39 @@ impl Pose8 {
     }
 }
 
+/// The fractions `ks[i] / n` along an edge of `n` steps (every `ks[i]` at most `n`), in
+/// `f64`: eight divisions in two AVX2 instructions when `avx2` (the caller checked the CPU)
+/// and `n` fits an `i32`, the same correctly rounded quotients either way.
+#[inline(always)]
+pub fn edge_fractions(ks: &[usize; LANES], n: usize, avx2: bool) -> [f64; LANES] {
+    #[cfg(target_arch = "x86_64")]
+    if avx2 && n <= i32::MAX as usize {
+        debug_assert!(ks.iter().all(|&k| k <= n));
+        // SAFETY: the CPU has AVX2 (the caller says so, from `has_avx2`).
+        return unsafe { edge_fractions_avx2(ks, n) };
+    }
+    let _ = avx2;
+    std::array::from_fn(|i| ks[i] as f64 / n as f64)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn edge_fractions_avx2(ks: &[usize; LANES], n: usize) -> [f64; LANES] {
+    use std::arch::x86_64::*;
+    let k: [i32; LANES] = std::array::from_fn(|i| ks[i] as i32);
+    // SAFETY: `k` holds eight values (unaligned loads and stores).
+    unsafe {
+        let n = _mm256_set1_pd(n as f64);
+        let lo = _mm256_cvtepi32_pd(_mm_loadu_si128(k.as_ptr().cast()));
+        let hi = _mm256_cvtepi32_pd(_mm_loadu_si128(k.as_ptr().add(4).cast()));
+        let mut out = [0.0; LANES];
+        _mm256_storeu_pd(out.as_mut_ptr(), _mm256_div_pd(lo, n));
+        _mm256_storeu_pd(out.as_mut_ptr().add(4), _mm256_div_pd(hi, n));
+        out
+    }
+}
+
 /// Writes the eight points `start + t[i] · delta` of an edge into `out`, variable by variable
 /// (`out[j]` lane `i` = `start[j] + t[i] · delta[j]`, in `f64`, then rounded), in AVX2
 /// registers when `avx2` (the caller checked the CPU). The same operations either way: LLVM
@@ -526,6 +559,20 @@ mod tests {
     }
 
     /// The edge's lanes written in AVX2 equal the portable ones, bit for bit.
+    #[test]
+    fn edge_fractions_in_avx2_equal_the_portable_ones() {
+        if !has_avx2() {
+            return;
+        }
+        for n in [1usize, 2, 3, 7, 31, 32, 33, 97, 1000, 65_537] {
+            for first in [0, 1, n / 3, n.saturating_sub(7)] {
+                let ks: [usize; LANES] = std::array::from_fn(|i| (first + 5 * i) % (n + 1));
+                let (p, v) = (edge_fractions(&ks, n, false), edge_fractions(&ks, n, true));
+                assert_eq!(p.map(f64::to_bits), v.map(f64::to_bits), "n {n}, ks {ks:?}");
+            }
+        }
+    }
+
     #[test]
     fn edge_lanes_in_avx2_equal_the_portable_ones() {
         if !has_avx2() {

@@ -37,7 +37,7 @@ use crate::robot::fk::JointFrames;
 use crate::robot::{Motion, Robot};
 use crate::world::map::{Clearance, OccupancyMap};
 use crate::world::Environment;
-use lanes::{boxes_overlapping, edge_lanes, has_avx2, Pose8, ALL_LANES, F8, LANES};
+use lanes::{boxes_overlapping, edge_fractions, edge_lanes, has_avx2, Pose8, ALL_LANES, F8, LANES};
 use std::sync::Arc;
 
 /// Environment contacts remembered and tried first in the next batch (see
@@ -661,7 +661,7 @@ impl BatchChecker {
     /// with `t[i] = ks[i] / n` (in `f64`, then rounded: the same values on every path).
     #[inline(always)]
     fn fill_lanes(&mut self, (ks, n): (&[usize; LANES], usize)) {
-        let t: [f64; LANES] = std::array::from_fn(|i| ks[i] as f64 / n as f64);
+        let t = edge_fractions(ks, n, self.avx2);
         edge_lanes(&mut self.lanes, &self.start, &self.delta, &t, self.avx2);
     }
 
