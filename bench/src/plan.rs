@@ -337,6 +337,8 @@ struct Split {
     fallbacks: u64,
     batches: u64,
     remembered: u64,
+    screened: u64,
+    screened_out: u64,
 }
 
 impl Split {
@@ -351,6 +353,8 @@ impl Split {
         self.fallbacks += s.exact_fallbacks;
         self.batches += s.batches;
         self.remembered += s.remembered_batches;
+        self.screened += s.screened;
+        self.screened_out += s.screened_out;
     }
 
     /// Collision-checking time per configuration checked, ns.
@@ -359,15 +363,16 @@ impl Split {
     }
 
     /// `sample_pct check_pct neighbour_pct other_pct` of the search time, ns per checked
-    /// configuration, configurations per iteration, exact fallbacks and the share of batches a
-    /// remembered contact ended.
+    /// configuration, configurations per iteration, exact fallbacks, the share of batches a
+    /// remembered contact ended, and the extensions screened while searches were stuck and
+    /// the share of them the screen refused.
     fn keys(&self) -> String {
         let pct = |x: f64| 100.0 * x / self.search_s.max(1e-12);
         let other = self.search_s - self.sample_s - self.check_s - self.neighbour_s;
         format!(
             "sample_pct={:.1} check_pct={:.1} neighbour_pct={:.1} other_pct={:.1} \
              check_ns_per_config={:.1} configs_per_iteration={:.1} exact_fallbacks={} \
-             remembered_pct={:.1}",
+             remembered_pct={:.1} screened={} screened_out_pct={:.1}",
             pct(self.sample_s),
             pct(self.check_s),
             pct(self.neighbour_s),
@@ -375,7 +380,9 @@ impl Split {
             self.check_ns_per_config(),
             self.configs as f64 / self.iterations.max(1) as f64,
             self.fallbacks,
-            100.0 * self.remembered as f64 / self.batches.max(1) as f64
+            100.0 * self.remembered as f64 / self.batches.max(1) as f64,
+            self.screened,
+            100.0 * self.screened_out as f64 / self.screened.max(1) as f64
         )
     }
 }

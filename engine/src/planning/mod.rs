@@ -242,6 +242,10 @@ pub struct PlanStats {
     pub validate_s: f64,
     /// Configurations the exact checker decided near anchors during the search.
     pub exact_fallbacks: u64,
+    /// Extensions whose end states were screened together while the search was stuck.
+    pub screened: u64,
+    /// Of those, the ones the screen refused (a contact found) without a check of their own.
+    pub screened_out: u64,
     /// Path length before simplification.
     pub length_before: f64,
     /// Path length after simplification.

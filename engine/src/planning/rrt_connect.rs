@@ -105,6 +105,25 @@ impl Tree {
     }
 }
 
+/// The extensions of one gathering (see [`GATHER`]): their end states and steps, `dof`
+/// values each, and per extension its node, range, whether it reaches its sample, and
+/// whether its iteration is timed.
+struct Gathered {
+    ends: Vec<f64>,
+    steps: Vec<f64>,
+    meta: [(usize, f64, bool, bool); GATHER],
+}
+
+impl Gathered {
+    fn new(dof: usize) -> Self {
+        Gathered {
+            ends: vec![0.0; GATHER * dof],
+            steps: vec![0.0; GATHER * dof],
+            meta: [(0, 0.0, false, false); GATHER],
+        }
+    }
+}
+
 enum Extend {
     Trapped,
     Advanced(usize),
@@ -135,6 +154,21 @@ const SPLIT_EVERY: u64 = 32;
 /// The search looks at the wall clock (its time limit) and at its cancel flag once in this
 /// many iterations (the clock costs ~25 ns, an iteration that rejects its sample ~100).
 const LOOK_EVERY: u64 = 32;
+
+/// While the search is stuck (see [`STUCK_AFTER`]), the smaller tree's extensions are gathered
+/// this many at a time, their end states screened in one batch against the contacts the
+/// checks found last, and only the unflagged ones checked in full: where nearly every
+/// extension fails at its end (a gripper in a narrow shelf), most are refused for a share of
+/// one batch instead of a batch each.
+const GATHER: usize = 8;
+
+/// Samples a gathering draws at most (the dynamic domain rejects many).
+const GATHER_DRAWS: usize = 16;
+
+/// Extensions are gathered once the search has taken this many iterations and this many
+/// extensions in a row have failed (until one advances): short searches, where extensions
+/// advance often, are left as they are.
+const STUCK_AFTER: (u64, u64) = (1024, 32);
 
 /// Search time by phase, in clock ticks (see [`ticks`]), estimated from every
 /// [`SPLIT_EVERY`]th iteration.
@@ -170,6 +204,16 @@ fn timed<T>(on: bool, phase: &mut u64, f: impl FnOnce() -> T) -> T {
     let out = f();
     let spent = ticks().wrapping_sub(t).saturating_sub(tick_overhead());
     *phase += SPLIT_EVERY * spent;
+    out
+}
+
+/// Runs `f` and adds its ticks, less the clock's own, to `phase` (unscaled: for work done
+/// once per gathering, not per iteration).
+#[inline(always)]
+fn timed_each<T>(phase: &mut u64, f: impl FnOnce() -> T) -> T {
+    let t = ticks();
+    let out = f();
+    *phase += ticks().wrapping_sub(t).saturating_sub(tick_overhead());
     out
 }
 
@@ -242,49 +286,58 @@ impl Search<'_, '_, '_> {
     /// farther from their nearest node than its radius are rejected (`None`), and the radius
     /// shrinks where extensions fail and grows where they succeed (Yershova et al. 2005).
     fn extend(&mut self, tree: &mut Tree, target: &[f64]) -> Option<Extend> {
-        if let Some(dd) = self.domain {
-            let (near, d) = timed(self.timed, &mut self.phases.neighbour, || {
-                tree.nearest_in_domain(target)
-            })?;
-            if d > tree.domain[near] {
-                return None;
-            }
-            let out = self.extend_root_aware(tree, near, d, target);
-            let r = &mut tree.domain[near];
-            match out {
-                Extend::Trapped if r.is_finite() => *r = (*r * (1.0 - dd.alpha)).max(dd.min_radius),
-                Extend::Trapped => *r = dd.radius,
-                _ if r.is_finite() => *r *= 1.0 + dd.alpha,
-                _ => {}
-            }
-            return Some(out);
-        }
-        let (near, d) = self.nearest(tree, target);
-        Some(self.extend_root_aware(tree, near, d, target))
+        let (near, d) = self.nearest_accepting(tree, target)?;
+        let out = self.extend_from(tree, near, d, target, self.range_from(tree, near));
+        self.record(tree, near, &out);
+        Some(out)
     }
 
-    /// [`Search::extend_from`], with a root's shorter step once one has failed from it.
+    /// The node nearest to `target` and its distance; `None` when a dynamic domain rejects
+    /// the sample (its nearest node's radius does not reach it).
     #[inline(always)]
-    fn extend_root_aware(
-        &mut self,
-        tree: &mut Tree,
-        near: usize,
-        d: f64,
-        target: &[f64],
-    ) -> Extend {
-        let Some(&failed) = tree.root_failed.get(near) else {
-            return self.extend_from(tree, near, d, target, self.range);
-        };
-        let range = if failed {
-            self.range * ROOT_STEP
-        } else {
-            self.range
-        };
-        let out = self.extend_from(tree, near, d, target, range);
-        if let Extend::Trapped = out {
-            tree.root_failed[near] = true;
+    fn nearest_accepting(&mut self, tree: &mut Tree, target: &[f64]) -> Option<(usize, f64)> {
+        if self.domain.is_none() {
+            return Some(self.nearest(tree, target));
         }
-        out
+        let (near, d) = timed(self.timed, &mut self.phases.neighbour, || {
+            tree.nearest_in_domain(target)
+        })?;
+        (d <= tree.domain[near]).then_some((near, d))
+    }
+
+    /// The longest step from node `near`: the range, or [`ROOT_STEP`] of it from a root an
+    /// extension has failed from.
+    #[inline(always)]
+    fn range_from(&self, tree: &Tree, near: usize) -> f64 {
+        match tree.root_failed.get(near) {
+            Some(true) => self.range * ROOT_STEP,
+            _ => self.range,
+        }
+    }
+
+    /// Notes an extension's outcome from node `near`: a root that failed takes shorter steps
+    /// from then on, and the node's dynamic-domain radius shrinks on a failure and grows on a
+    /// success.
+    #[inline(always)]
+    fn record(&mut self, tree: &mut Tree, near: usize, out: &Extend) {
+        let trapped = matches!(out, Extend::Trapped);
+        if trapped {
+            if let Some(failed) = tree.root_failed.get_mut(near) {
+                *failed = true;
+            }
+        }
+        if let Some(dd) = self.domain {
+            let r = &mut tree.domain[near];
+            if trapped {
+                *r = if r.is_finite() {
+                    (*r * (1.0 - dd.alpha)).max(dd.min_radius)
+                } else {
+                    dd.radius
+                };
+            } else if r.is_finite() {
+                *r *= 1.0 + dd.alpha;
+            }
+        }
     }
 
     /// One step of at most `range` from node `near`, at distance `d`, towards `target`.
@@ -296,34 +349,98 @@ impl Search<'_, '_, '_> {
         target: &[f64],
         range: f64,
     ) -> Extend {
-        let near_q = tree.node(near);
-        let reached = d <= range;
-        if reached {
-            self.scratch.copy_from_slice(target);
-        } else {
-            // The step is kept: the edge's states follow from it without taking the joints'
-            // differences again.
-            let t = range / d;
-            self.robot
-                .step_towards(near_q, target, t, &mut self.scratch, &mut self.step);
+        let reached = step_end(
+            self.robot,
+            (tree.node(near), d, target, range),
+            &mut self.scratch,
+            &mut self.step,
+        );
+        let (checker, timed_now) = (&mut *self.checker, self.timed);
+        let check = &mut self.phases.check;
+        add_if_free(
+            checker,
+            (timed_now, check),
+            tree,
+            near,
+            (&self.scratch, &self.step),
+            (reached, range),
+        )
+    }
+
+    /// One gathering (see [`GATHER`]) of extensions of `tree` towards samples drawn into
+    /// `sample` (counted in `iterations`, below `limit`): the node the first that advances
+    /// added (the rest are dropped: their nearest nodes may have changed), else `None`.
+    /// `failures` counts the extensions that fail in a row.
+    // Out of line: the ordinary iteration stays compact.
+    #[inline(never)]
+    fn gathered_round(
+        &mut self,
+        tree: &mut Tree,
+        (sampler, rng): (&mut dyn Sampler, &mut PlannerRng),
+        sample: &mut [f64],
+        (iterations, limit): (&mut u64, u64),
+        failures: &mut u64,
+        g: &mut Gathered,
+    ) -> Option<usize> {
+        let dof = tree.dof;
+        let (mut k, mut draws) = (0, 0);
+        while k < GATHER && draws < GATHER_DRAWS && *iterations < limit {
+            *iterations += 1;
+            draws += 1;
+            self.timed = iterations.is_multiple_of(SPLIT_EVERY);
+            timed(self.timed, &mut self.phases.sample, || {
+                sampler.sample(self.robot, rng, sample)
+            });
+            let Some((near, d)) = self.nearest_accepting(tree, sample) else {
+                continue;
+            };
+            let range = self.range_from(tree, near);
+            let reached = step_end(
+                self.robot,
+                (tree.node(near), d, sample, range),
+                &mut g.ends[k * dof..][..dof],
+                &mut g.steps[k * dof..][..dof],
+            );
+            g.meta[k] = (near, range, reached, self.timed);
+            k += 1;
         }
-        let (checker, scratch, step) = (&mut *self.checker, &self.scratch, &self.step);
-        let ok = timed(self.timed, &mut self.phases.check, || {
-            if reached {
-                checker.reach_valid(tree.node(near), scratch)
+        if k == 0 {
+            return None;
+        }
+        self.stats.screened += k as u64;
+        let flagged = {
+            let ends: [&[f64]; GATHER] =
+                std::array::from_fn(|i| &g.ends[i.min(k - 1) * dof..][..dof]);
+            let checker = &mut *self.checker;
+            timed_each(&mut self.phases.check, || {
+                checker.surely_colliding(&ends[..k])
+            })
+        };
+        self.stats.screened_out += u64::from(flagged.count_ones());
+        for i in 0..k {
+            let (near, range, reached, on) = g.meta[i];
+            let out = if flagged & (1 << i) != 0 {
+                Extend::Trapped
             } else {
-                checker.step_valid(tree.node(near), scratch, step, range)
+                add_if_free(
+                    self.checker,
+                    (on, &mut self.phases.check),
+                    tree,
+                    near,
+                    (&g.ends[i * dof..][..dof], &g.steps[i * dof..][..dof]),
+                    (reached, range),
+                )
+            };
+            self.record(tree, near, &out);
+            match out {
+                Extend::Trapped => *failures += 1,
+                Extend::Advanced(n) | Extend::Reached(n) => {
+                    *failures = 0;
+                    return Some(n);
+                }
             }
-        });
-        if !ok {
-            return Extend::Trapped;
         }
-        let i = tree.add(&self.scratch, near as u32);
-        if reached {
-            Extend::Reached(i)
-        } else {
-            Extend::Advanced(i)
-        }
+        None
     }
 
     /// Steps towards `target` until it is reached or blocked: from the nearest node first,
@@ -339,6 +456,56 @@ impl Search<'_, '_, '_> {
                 other => return other,
             }
         }
+    }
+}
+
+/// Writes the end of a step of at most `range` from `from` (at distance `d`) towards
+/// `target` into `end`, and the step per joint into `step` (see [`Robot::step_towards`]);
+/// true when the step reaches `target`.
+#[inline(always)]
+fn step_end(
+    robot: &Robot,
+    (from, d, target, range): (&[f64], f64, &[f64], f64),
+    end: &mut [f64],
+    step: &mut [f64],
+) -> bool {
+    let reached = d <= range;
+    if reached {
+        end.copy_from_slice(target);
+    } else {
+        // The step is kept: the edge's states follow from it without taking the joints'
+        // differences again.
+        robot.step_towards(from, target, range / d, end, step);
+    }
+    reached
+}
+
+/// Adds `end` to `tree` below node `near` when the step to it (`step`, of length at most
+/// `range`; to a sample when `reached`) is free, the check timed into `phase` when `on`.
+#[inline(always)]
+fn add_if_free(
+    checker: &mut Validity<'_>,
+    (on, phase): (bool, &mut u64),
+    tree: &mut Tree,
+    near: usize,
+    (end, step): (&[f64], &[f64]),
+    (reached, range): (bool, f64),
+) -> Extend {
+    let ok = timed(on, phase, || {
+        if reached {
+            checker.reach_valid(tree.node(near), end)
+        } else {
+            checker.step_valid(tree.node(near), end, step, range)
+        }
+    });
+    if !ok {
+        return Extend::Trapped;
+    }
+    let i = tree.add(end, near as u32);
+    if reached {
+        Extend::Reached(i)
+    } else {
+        Extend::Advanced(i)
     }
 }
 
@@ -390,16 +557,23 @@ pub(crate) fn search(
     let mut sample = vec![0.0; dof];
     let mut target = vec![0.0; dof];
     let mut iterations = 0u64;
+    // The next iteration at which the clock and the cancel flag are read.
+    let mut next_look = 0u64;
+    // Extensions of the smaller tree that failed in a row.
+    let mut failures = 0u64;
+    let mut gathered = Gathered::new(dof);
     loop {
-        if iterations.is_multiple_of(LOOK_EVERY) && params.cancel.is_set() {
+        let look = iterations >= next_look;
+        if look {
+            next_look = iterations + LOOK_EVERY;
+        }
+        if look && params.cancel.is_set() {
             search.phases.finish(t0, search.stats);
             search.stats.iterations = iterations;
             search.stats.tree_nodes = (start_tree.len() + goal_tree.len()) as u64;
             return Err(PlanError::Cancelled { iterations });
         }
-        if iterations >= params.max_iterations
-            || (iterations.is_multiple_of(LOOK_EVERY) && t0.elapsed() >= params.time_limit)
-        {
+        if iterations >= params.max_iterations || (look && t0.elapsed() >= params.time_limit) {
             search.phases.finish(t0, search.stats);
             let elapsed = search.stats.search_s;
             search.stats.iterations = iterations;
@@ -409,11 +583,6 @@ pub(crate) fn search(
                 elapsed_ms: elapsed * 1e3,
             });
         }
-        iterations += 1;
-        search.timed = iterations.is_multiple_of(SPLIT_EVERY);
-        timed(search.timed, &mut search.phases.sample, || {
-            sampler.sample(robot, rng, &mut sample)
-        });
 
         // Grow the smaller tree (balanced bidirectional search).
         let from_start = start_tree.len() <= goal_tree.len();
@@ -422,9 +591,32 @@ pub(crate) fn search(
         } else {
             (&mut goal_tree, &mut start_tree)
         };
-        let new = match search.extend(a, &sample) {
-            None | Some(Extend::Trapped) => None,
-            Some(Extend::Advanced(i) | Extend::Reached(i)) => Some(i),
+        let new = if iterations >= STUCK_AFTER.0 && failures >= STUCK_AFTER.1 {
+            search.gathered_round(
+                a,
+                (&mut *sampler, &mut *rng),
+                &mut sample,
+                (&mut iterations, params.max_iterations),
+                &mut failures,
+                &mut gathered,
+            )
+        } else {
+            iterations += 1;
+            search.timed = iterations.is_multiple_of(SPLIT_EVERY);
+            timed(search.timed, &mut search.phases.sample, || {
+                sampler.sample(robot, rng, &mut sample)
+            });
+            match search.extend(a, &sample) {
+                None => None,
+                Some(Extend::Trapped) => {
+                    failures += 1;
+                    None
+                }
+                Some(Extend::Advanced(i) | Extend::Reached(i)) => {
+                    failures = 0;
+                    Some(i)
+                }
+            }
         };
         if let Some(new) = new {
             target.copy_from_slice(a.node(new));
@@ -454,6 +646,26 @@ mod tests {
     use crate::collision::Shape;
     use crate::world::{Environment, Object};
     use crate::Pose;
+
+    /// A search of range 1.0 with `checker`'s robot, writing into `stats`.
+    fn test_search<'c, 'a, 's>(
+        checker: &'c mut Validity<'a>,
+        stats: &'s mut PlanStats,
+        domain: Option<DynamicDomain>,
+    ) -> Search<'c, 'a, 's> {
+        let robot = checker.robot();
+        Search {
+            robot,
+            range: 1.0,
+            domain,
+            scratch: vec![0.0; robot.dof()],
+            step: vec![0.0; robot.dof()],
+            checker,
+            stats,
+            phases: Phases::default(),
+            timed: false,
+        }
+    }
 
     /// A goal whose full-range steps towards a sample all hit a post takes half steps once
     /// one has failed, and so leaves; a node that is not a root keeps the full range.
@@ -486,17 +698,7 @@ mod tests {
         );
         let continuous: Vec<bool> = robot.variables().iter().map(|v| v.continuous).collect();
         let mut stats = PlanStats::default();
-        let mut search = Search {
-            robot: &robot,
-            range: 1.0,
-            domain: None,
-            scratch: vec![0.0; robot.dof()],
-            step: vec![0.0; robot.dof()],
-            checker: &mut checker,
-            stats: &mut stats,
-            phases: Phases::default(),
-            timed: false,
-        };
+        let mut search = test_search(&mut checker, &mut stats, None);
         let target = at(1.2);
         let mut tree = Tree::new(robot.dof(), &continuous);
         tree.add_root(&at(0.0));
@@ -515,8 +717,73 @@ mod tests {
         let near = 1;
         for _ in 0..2 {
             let d = robot.distance(tree.node(near), &target);
-            let out = search.extend_root_aware(&mut tree, near, d, &target);
+            let range = search.range_from(&tree, near);
+            let out = search.extend_from(&mut tree, near, d, &target, range);
+            search.record(&mut tree, near, &out);
             assert!(matches!(out, Extend::Trapped));
         }
+    }
+
+    /// Gathered extensions among crowded boxes: the screen refuses many without a check of
+    /// their own, every node added is free and reached by a free motion from its parent, and
+    /// the same seed grows the same tree.
+    #[test]
+    fn gathered_extensions_add_only_free_nodes() {
+        use crate::planning::UniformSampler;
+        use rand::{Rng, SeedableRng};
+        let robot = Robot::builtin("fetch").unwrap();
+        let mut place = rand::rngs::StdRng::seed_from_u64(3);
+        let objects = (0..14).map(|i| Object {
+            name: format!("box{i}"),
+            shape: Shape::cuboid([0.25, 0.25, 0.25]),
+            pose: Pose::translation(
+                place.random_range(0.3..1.1),
+                place.random_range(-0.8..0.8),
+                place.random_range(0.3..1.5),
+            ),
+        });
+        let env = Environment::from_objects(objects).unwrap();
+        let continuous: Vec<bool> = robot.variables().iter().map(|v| v.continuous).collect();
+        let grow = |seed: u64| {
+            let mut checker = Validity::new(&robot, &env, 1.0 / 32.0, 0.0);
+            let root = robot.named_state("tuck").unwrap().to_vec();
+            assert!(checker.is_valid(&root));
+            let mut stats = PlanStats::default();
+            let domain = Some(DynamicDomain::default());
+            let mut search = test_search(&mut checker, &mut stats, domain);
+            let mut tree = Tree::new(robot.dof(), &continuous);
+            tree.add_root(&root);
+            let (mut rng, mut sampler) = (PlannerRng::seed_from_u64(seed), UniformSampler);
+            let (mut sample, mut gathered) = (vec![0.0; robot.dof()], Gathered::new(robot.dof()));
+            let (mut iterations, mut failures) = (0, 0);
+            for _ in 0..300 {
+                search.gathered_round(
+                    &mut tree,
+                    (&mut sampler, &mut rng),
+                    &mut sample,
+                    (&mut iterations, u64::MAX),
+                    &mut failures,
+                    &mut gathered,
+                );
+            }
+            let (screened, refused) = (search.stats.screened, search.stats.screened_out);
+            (tree.q.clone(), tree.parent.clone(), screened, refused)
+        };
+        let (q, parent, screened, refused) = grow(11);
+        assert!(parent.len() > 10, "{} nodes", parent.len());
+        assert!(
+            refused * 5 > screened,
+            "{refused} of {screened} refused by the screen"
+        );
+        let mut oracle = Validity::new(&robot, &env, 1.0 / 32.0, 0.0);
+        let node = |i: usize| &q[i * robot.dof()..][..robot.dof()];
+        for (i, &p) in parent.iter().enumerate().skip(1) {
+            let p = p as usize;
+            assert!(oracle.is_valid(node(i)) && oracle.motion_valid(node(p), node(i)));
+        }
+        assert_eq!((q, parent), {
+            let (q, parent, ..) = grow(11);
+            (q, parent)
+        });
     }
 }

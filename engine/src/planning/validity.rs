@@ -127,6 +127,24 @@ impl<'a> Validity<'a> {
         self.exact.is_valid(q)
     }
 
+    /// Of up to eight states, those (bits) the sphere model surely finds in contact, from the
+    /// contacts its checks found last ([`BatchChecker::surely_colliding`]); never a state near
+    /// an anchor, where the spheres' verdict is not final. Lanes not flagged may collide too.
+    pub fn surely_colliding(&mut self, states: &[&[f64]]) -> u32 {
+        let Some(batch) = self.batch.as_mut() else {
+            return 0;
+        };
+        let mut flagged = batch.surely_colliding(states);
+        if flagged != 0 && !self.anchors.is_empty() {
+            for (i, q) in states.iter().enumerate() {
+                if self.near_anchor(q) {
+                    flagged &= !(1 << i);
+                }
+            }
+        }
+        flagged
+    }
+
     fn near_anchor(&self, q: &[f64]) -> bool {
         self.anchors
             .iter()

@@ -116,6 +116,20 @@ impl F8 {
         any
     }
 
+    /// The lanes where [`F8::any_lt`] finds `self` below `o` (the sign bits of the
+    /// differences), as a lane mask.
+    #[inline(always)]
+    pub fn lt_mask(self, o: F8) -> Mask8 {
+        let d = self - o;
+        Mask8(std::array::from_fn(|k| {
+            if (d.0[k].to_bits() as i32) < 0 {
+                u32::MAX
+            } else {
+                0
+            }
+        }))
+    }
+
     /// The lanes where `self` is at most `o`, as a lane mask (for several tests and-ed
     /// before their bits are taken out once).
     #[inline(always)]

@@ -47,6 +47,10 @@ use std::sync::Arc;
 /// find more but cost the short table searches more when they miss.
 const RECENT: usize = 8;
 
+/// Distinct sphere–object contacts kept for [`BatchChecker::surely_colliding`], which
+/// screens the end states of several tree extensions at once.
+const SCREEN: usize = 32;
+
 /// Stamp of placements that never change (links that do not move).
 const STATIC: u32 = u32::MAX;
 
@@ -208,6 +212,9 @@ pub struct BatchChecker {
     states: u64,
     /// The last environment contacts, most recent first: link, sphere, what it touched.
     recent: [Option<(usize, usize, Touched)>; RECENT],
+    /// The last distinct contacts of spheres with objects the hierarchy found, most recent
+    /// first (link, sphere, object): what [`BatchChecker::surely_colliding`] tries.
+    screen: Vec<(usize, usize, usize)>,
     /// Batches checked, and those a remembered contact ended.
     batches: u64,
     remembered: u64,
@@ -409,6 +416,7 @@ impl BatchChecker {
             epoch: 0,
             states: 0,
             recent: [None; RECENT],
+            screen: Vec::with_capacity(SCREEN),
             batches: 0,
             remembered: 0,
             live: ALL_LANES,
@@ -499,6 +507,7 @@ impl BatchChecker {
         self.batches = 0;
         self.remembered = 0;
         self.recent = [None; RECENT];
+        self.screen.clear();
         self
     }
 
@@ -679,6 +688,68 @@ impl BatchChecker {
     pub fn may_collide(&mut self, lanes: &[F8]) -> bool {
         self.lanes[..self.dof].copy_from_slice(&lanes[..self.dof]);
         self.lanes_may_collide(None)
+    }
+
+    /// Of up to eight configurations (`states[i]` in lane `i`), those (bits) surely in
+    /// contact with an object: a sphere of one of the last [`SCREEN`] distinct contacts the
+    /// checks found touches its object there. Lanes without a contact found may still
+    /// collide. The planner screens the end states of several extensions at once with it
+    /// where nearly every extension fails (a flag is a contact, as in a full check).
+    pub fn surely_colliding(&mut self, states: &[&[f64]]) -> u32 {
+        let n = states.len().min(LANES);
+        if n == 0 || self.screen.is_empty() {
+            return 0;
+        }
+        for (j, lane) in self.lanes.iter_mut().enumerate() {
+            *lane = F8(std::array::from_fn(|i| states[i.min(n - 1)][j] as f32));
+        }
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: the CPU has AVX2 (checked at construction).
+            return unsafe { self.screen_avx2(n) };
+        }
+        self.screen_lanes(n)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn screen_avx2(&mut self, n: usize) -> u32 {
+        self.screen_lanes(n)
+    }
+
+    #[inline(always)]
+    fn screen_lanes(&mut self, n: usize) -> u32 {
+        let posed = std::mem::take(&mut self.posed);
+        for &l in &posed {
+            self.fk_link(l);
+        }
+        self.posed = posed;
+        let wanted = ALL_LANES >> (LANES - n);
+        let mut flagged = 0;
+        for k in 0..self.screen.len() {
+            let (l, s, j) = self.screen[k];
+            let (c, r) = self.sphere[s];
+            let p = self.poses[self.frame[l]].apply_const_on(c, self.avx2);
+            flagged |= penetrating_lanes(&self.objects[j], p, r);
+            if flagged & wanted == wanted {
+                break;
+            }
+        }
+        flagged & wanted
+    }
+
+    /// Puts a contact first among those kept for screening (dropping the oldest past
+    /// [`SCREEN`]).
+    fn keep_for_screening(&mut self, contact: (usize, usize, usize)) {
+        match self.screen.iter().position(|&c| c == contact) {
+            Some(k) => self.screen[..=k].rotate_right(1),
+            None => {
+                if self.screen.len() == SCREEN {
+                    self.screen.pop();
+                }
+                self.screen.insert(0, contact);
+            }
+        }
     }
 
     #[cfg(target_arch = "x86_64")]
@@ -941,8 +1012,9 @@ impl BatchChecker {
                     let p = *at;
                     let hit = penetrated(&self.objects[first..end], cluster_mask, p, r);
                     if hit != 0 {
-                        let object = Touched::Object(first + hit.trailing_zeros() as usize);
-                        self.remember((l, s, object));
+                        let j = first + hit.trailing_zeros() as usize;
+                        self.remember((l, s, Touched::Object(j)));
+                        self.keep_for_screening((l, s, j));
                         return true;
                     }
                     if cluster_map != 0 && lanes_touch_map(map, grid, p, r, cluster_map) {
@@ -1378,10 +1450,26 @@ fn penetrated(objects: &[Object8], mask: u64, p: [F8; 3], r: f32) -> u64 {
     out
 }
 
+/// The lanes (bits) where the ball at `p` with radius `r` penetrates object `o`
+/// ([`penetrates`] lane by lane).
+#[inline(always)]
+fn penetrating_lanes(o: &Object8, p: [F8; 3], r: f32) -> u32 {
+    let (gap2, reach2) = penetration(o, p, r);
+    gap2.lt_mask(reach2).bits()
+}
+
 /// True when the ball at `p` with radius `r` penetrates object `o` in some lane (the scalar checker's
 /// test: signed distance below `r`).
 #[inline(always)]
 fn penetrates(o: &Object8, p: [F8; 3], r: f32) -> bool {
+    let (gap2, reach2) = penetration(o, p, r);
+    gap2.any_lt(reach2)
+}
+
+/// What [`penetrates`] compares, per lane: a squared gap and the squared reach it must be
+/// below.
+#[inline(always)]
+fn penetration(o: &Object8, p: [F8; 3], r: f32) -> (F8, F8) {
     let d = [
         p[0] - F8::splat(o.t[0]),
         p[1] - F8::splat(o.t[1]),
@@ -1395,28 +1483,26 @@ fn penetrates(o: &Object8, p: [F8; 3], r: f32) -> bool {
     match o.kind {
         ObjectKind::Sphere { r: big } => {
             let reach = big + r;
-            x.mul_add(x, y.mul_add(y, z * z))
-                .any_lt(F8::splat(reach * reach))
+            (x.mul_add(x, y.mul_add(y, z * z)), F8::splat(reach * reach))
         }
         ObjectKind::Box { h } => {
             let qx = (x.abs() - F8::splat(h[0])).max(zero);
             let qy = (y.abs() - F8::splat(h[1])).max(zero);
             let qz = (z.abs() - F8::splat(h[2])).max(zero);
-            qx.mul_add(qx, qy.mul_add(qy, qz * qz))
-                .any_lt(F8::splat(r * r))
+            (qx.mul_add(qx, qy.mul_add(qy, qz * qz)), F8::splat(r * r))
         }
         ObjectKind::Cylinder { r: big, hl } => {
             let radial = (x.mul_add(x, y * y).sqrt() - F8::splat(big)).max(zero);
             let axial = (z.abs() - F8::splat(hl)).max(zero);
-            radial
-                .mul_add(radial, axial * axial)
-                .any_lt(F8::splat(r * r))
+            (radial.mul_add(radial, axial * axial), F8::splat(r * r))
         }
         ObjectKind::Capsule { r: big, hl } => {
             let zc = z - z.max(F8::splat(-hl)).min(F8::splat(hl));
             let reach = big + r;
-            x.mul_add(x, y.mul_add(y, zc * zc))
-                .any_lt(F8::splat(reach * reach))
+            (
+                x.mul_add(x, y.mul_add(y, zc * zc)),
+                F8::splat(reach * reach),
+            )
         }
     }
 }
@@ -1427,6 +1513,20 @@ mod tests {
     use crate::world::Object;
     use crate::Pose;
     use rand::{Rng, SeedableRng};
+
+    /// Six random boxes in front of the robot, where arms reach.
+    fn six_boxes(rng: &mut rand::rngs::StdRng) -> Environment {
+        let objects = (0..6).map(|i| Object {
+            name: format!("box{i}"),
+            shape: Shape::cuboid([0.3, 0.2, 0.1]),
+            pose: Pose::translation(
+                rng.random_range(0.2..1.0),
+                rng.random_range(-0.6..0.6),
+                rng.random_range(0.2..1.4),
+            ),
+        });
+        Environment::from_objects(objects).unwrap()
+    }
 
     /// The AVX2 code (with fused multiply-adds) and the portable code (whose fused
     /// multiply-adds are library calls here) place every link at the same pose, bit for bit,
@@ -1440,16 +1540,7 @@ mod tests {
         let mut rng = rand::rngs::StdRng::seed_from_u64(5);
         for name in ["fetch", "panda"] {
             let robot = Robot::builtin(name).unwrap();
-            let objects = (0..6).map(|i| Object {
-                name: format!("box{i}"),
-                shape: Shape::cuboid([0.3, 0.2, 0.1]),
-                pose: Pose::translation(
-                    rng.random_range(0.2..1.0),
-                    rng.random_range(-0.6..0.6),
-                    rng.random_range(0.2..1.4),
-                ),
-            });
-            let env = Environment::from_objects(objects).unwrap();
+            let env = six_boxes(&mut rng);
             let mut vector = BatchChecker::new(&robot, &env);
             let mut portable = vector.clone();
             portable.avx2 = false;
@@ -1485,6 +1576,57 @@ mod tests {
             assert!(
                 hits > 0 && hits < runs,
                 "{name}: {hits} of {runs} in contact"
+            );
+        }
+    }
+
+    /// A state the screen flags is one the full check finds in contact, in AVX2 and
+    /// portable code alike (the same flags), and after some checks have found contacts the
+    /// screen flags many colliding states, none of the free ones.
+    #[test]
+    fn screened_states_are_in_contact() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(9);
+        for name in ["fetch", "panda"] {
+            let robot = Robot::builtin(name).unwrap();
+            let env = six_boxes(&mut rng);
+            let mut sut = BatchChecker::new(&robot, &env);
+            let mut full = sut.clone();
+            let mut portable = sut.clone();
+            portable.avx2 = false;
+            let state = |rng: &mut rand::rngs::StdRng| {
+                let mut q = vec![0.0; robot.dof()];
+                robot.sample_uniform(rng, &mut q);
+                q
+            };
+            assert_eq!(
+                sut.surely_colliding(&[&state(&mut rng)]),
+                0,
+                "nothing found yet"
+            );
+            let (mut flagged, mut colliding) = (0, 0);
+            for round in 0..400 {
+                // Checks find contacts (and teach both screens the same ones).
+                let q = state(&mut rng);
+                sut.state_may_collide(&q);
+                portable.state_may_collide(&q);
+                let n = 1 + round % LANES;
+                let states: Vec<Vec<f64>> = (0..n).map(|_| state(&mut rng)).collect();
+                let refs: Vec<&[f64]> = states.iter().map(|q| &q[..]).collect();
+                let flags = sut.surely_colliding(&refs);
+                assert_eq!(flags, portable.surely_colliding(&refs), "{name}");
+                assert_eq!(flags >> n, 0, "{name}: a lane past the states");
+                for (i, q) in states.iter().enumerate() {
+                    let hit = full.state_may_collide(q);
+                    colliding += usize::from(hit);
+                    if flags & (1 << i) != 0 {
+                        flagged += 1;
+                        assert!(hit, "{name}: a free state flagged");
+                    }
+                }
+            }
+            assert!(
+                flagged * 4 > colliding,
+                "{name}: {flagged} of {colliding} colliding states flagged"
             );
         }
     }
