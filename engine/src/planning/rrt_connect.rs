@@ -371,8 +371,6 @@ impl Search<'_, '_, '_> {
     /// `sample` (counted in `iterations`, below `limit`): the node the first that advances
     /// added (the rest are dropped: their nearest nodes may have changed), else `None`.
     /// `failures` counts the extensions that fail in a row.
-    // Out of line: the ordinary iteration stays compact.
-    #[inline(never)]
     fn gathered_round(
         &mut self,
         tree: &mut Tree,

@@ -694,12 +694,14 @@ impl BatchChecker {
     /// contact with an object: a sphere of one of the last [`SCREEN`] distinct contacts the
     /// checks found touches its object there. Lanes without a contact found may still
     /// collide. The planner screens the end states of several extensions at once with it
-    /// where nearly every extension fails (a flag is a contact, as in a full check).
+    /// where nearly every extension fails (a flag is a contact, as in a full check). The
+    /// states count among those checked ([`BatchChecker::states`]).
     pub fn surely_colliding(&mut self, states: &[&[f64]]) -> u32 {
         let n = states.len().min(LANES);
         if n == 0 || self.screen.is_empty() {
             return 0;
         }
+        self.states += n as u64;
         for (j, lane) in self.lanes.iter_mut().enumerate() {
             *lane = F8(std::array::from_fn(|i| states[i.min(n - 1)][j] as f32));
         }
