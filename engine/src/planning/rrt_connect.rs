@@ -200,20 +200,22 @@ fn timed<T>(on: bool, phase: &mut u64, f: impl FnOnce() -> T) -> T {
     if !on {
         return f();
     }
-    let t = ticks();
-    let out = f();
-    let spent = ticks().wrapping_sub(t).saturating_sub(tick_overhead());
-    *phase += SPLIT_EVERY * spent;
-    out
+    timed_scaled(SPLIT_EVERY, phase, f)
 }
 
 /// Runs `f` and adds its ticks, less the clock's own, to `phase` (unscaled: for work done
 /// once per gathering, not per iteration).
 #[inline(always)]
 fn timed_each<T>(phase: &mut u64, f: impl FnOnce() -> T) -> T {
+    timed_scaled(1, phase, f)
+}
+
+/// Runs `f` and adds `scale` times its ticks, less the clock's own, to `phase`.
+#[inline(always)]
+fn timed_scaled<T>(scale: u64, phase: &mut u64, f: impl FnOnce() -> T) -> T {
     let t = ticks();
     let out = f();
-    *phase += ticks().wrapping_sub(t).saturating_sub(tick_overhead());
+    *phase += scale * ticks().wrapping_sub(t).saturating_sub(tick_overhead());
     out
 }
 

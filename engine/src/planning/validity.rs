@@ -137,7 +137,7 @@ impl<'a> Validity<'a> {
         let mut flagged = batch.surely_colliding(states);
         if flagged != 0 && !self.anchors.is_empty() {
             for (i, q) in states.iter().enumerate() {
-                if self.near_anchor(q) {
+                if flagged & (1 << i) != 0 && self.near_anchor(q) {
                     flagged &= !(1 << i);
                 }
             }

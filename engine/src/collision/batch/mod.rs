@@ -721,11 +721,7 @@ impl BatchChecker {
 
     #[inline(always)]
     fn screen_lanes(&mut self, n: usize) -> u32 {
-        let posed = std::mem::take(&mut self.posed);
-        for &l in &posed {
-            self.fk_link(l);
-        }
-        self.posed = posed;
+        self.pose_links();
         let wanted = ALL_LANES >> (LANES - n);
         let mut flagged = 0;
         for k in 0..self.screen.len() {
@@ -776,6 +772,15 @@ impl BatchChecker {
             }
             self.epoch = 1;
         }
+        self.pose_links();
+        // The environment places each moving link's bound as it reaches it (most batches end
+        // at the first link or two); the self pairs need them all, placed by then.
+        self.env_contact() || self.self_contact()
+    }
+
+    /// Writes the pose of every moving link for the eight lanes' configurations.
+    #[inline(always)]
+    fn pose_links(&mut self) {
         // Moved out while the poses are written: the loop then keeps its place in registers
         // instead of reloading the list and checking the index per link.
         let posed = std::mem::take(&mut self.posed);
@@ -783,9 +788,6 @@ impl BatchChecker {
             self.fk_link(l);
         }
         self.posed = posed;
-        // The environment places each moving link's bound as it reaches it (most batches end
-        // at the first link or two); the self pairs need them all, placed by then.
-        self.env_contact() || self.self_contact()
     }
 
     #[inline(always)]
