@@ -125,6 +125,17 @@ enum Shift {
     General,
 }
 
+/// A self-collision pair: links `a` and `b`, their bound radii, and the square of their sum
+/// (the bounds overlap where their centres are nearer than that; `f32`, as [`overlap`]).
+#[derive(Clone, Copy)]
+struct SelfPair {
+    a: usize,
+    b: usize,
+    ra: f32,
+    rb: f32,
+    reach2: f32,
+}
+
 /// Items one `u64` mask holds: objects go down the hierarchy in groups of this many, and a
 /// link's clusters meet another link's this many at a time.
 const MASK_BITS: usize = 64;
@@ -193,8 +204,9 @@ pub struct BatchChecker {
     object_boxes: Vec<([F8; 3], [F8; 3])>,
     /// The occupancy map to avoid, if any.
     map: Option<Arc<OccupancyMap>>,
-    /// Self-collision pairs with a moving link, both with spheres, and their bound radii.
-    pairs: Vec<(usize, usize, f32, f32)>,
+    /// Self-collision pairs with a moving link, both with spheres (their links index
+    /// `bounds`: the pair loop reads them unchecked).
+    pairs: Vec<SelfPair>,
     /// Per-batch state.
     poses: Vec<Pose8>,
     bounds: Vec<[F8; 3]>,
@@ -381,11 +393,22 @@ impl BatchChecker {
             })
             .collect();
         let (moving_pairs, _) = robot.partition_pairs();
-        let pairs = moving_pairs
+        let pairs: Vec<SelfPair> = moving_pairs
             .into_iter()
-            .filter_map(|(a, b)| Some((a, b, bound[a]?.1, bound[b]?.1)))
+            .filter_map(|(a, b)| {
+                let (ra, rb) = (bound[a]?.1, bound[b]?.1);
+                let r = ra + rb;
+                Some(SelfPair {
+                    a,
+                    b,
+                    ra,
+                    rb,
+                    reach2: r * r,
+                })
+            })
             .collect();
         let n_links = links.len();
+        assert!(pairs.iter().all(|p| p.a.max(p.b) < n_links));
         // Links come parents first (`Robot::links`), so a pose is computed after its parent's.
         debug_assert!((0..n_links).all(|l| links[l].parent.is_none_or(|p| frame[p] < l)));
         let posed = (0..n_links)
@@ -1058,7 +1081,7 @@ impl BatchChecker {
         // Most pairs' bounds are apart in every lane: a tight loop finds those that are not.
         while let Some(k) = next_overlapping(&self.pairs, &self.bounds, next) {
             next = k + 1;
-            let (a, b, ra, rb) = self.pairs[k];
+            let SelfPair { a, b, ra, rb, .. } = self.pairs[k];
             let (ba, bb) = (self.bounds[a], self.bounds[b]);
             if !self.box_reached(a, bb, rb) || !self.box_reached(b, ba, ra) {
                 continue;
@@ -1368,14 +1391,17 @@ fn rotation(axis: [f32; 3], q: F8) -> Pose8 {
 
 /// The first self-collision pair from `from` on whose link bounds overlap in some lane.
 #[inline(always)]
-fn next_overlapping(
-    pairs: &[(usize, usize, f32, f32)],
-    bounds: &[[F8; 3]],
-    from: usize,
-) -> Option<usize> {
+fn next_overlapping(pairs: &[SelfPair], bounds: &[[F8; 3]], from: usize) -> Option<usize> {
     // A plain loop: closures would be compiled without the caller's AVX2.
-    for (k, &(a, b, ra, rb)) in pairs.iter().enumerate().skip(from) {
-        if overlap(bounds[a], ra, bounds[b], rb) {
+    for (k, p) in pairs.iter().enumerate().skip(from) {
+        // SAFETY: a pair's links are links of the robot, and `bounds` holds one per link
+        // (both made, and checked, in `BatchChecker::for_robot`; neither changes after).
+        let (a, b) = unsafe { (bounds.get_unchecked(p.a), bounds.get_unchecked(p.b)) };
+        let (dx, dy, dz) = (a[0] - b[0], a[1] - b[1], a[2] - b[2]);
+        if dx
+            .mul_add(dx, dy.mul_add(dy, dz * dz))
+            .any_lt(F8::splat(p.reach2))
+        {
             return Some(k);
         }
     }
