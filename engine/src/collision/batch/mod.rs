@@ -1644,7 +1644,7 @@ mod tests {
         ];
         let objects = shapes.iter().enumerate().map(|(i, shape)| Object {
             name: format!("o{i}"),
-            shape: shape.clone(),
+            shape: *shape,
             pose: Pose::from_parts(
                 nalgebra::Translation3::new(0.6, -0.2 + 0.1 * i as f64, 0.8),
                 nalgebra::UnitQuaternion::from_euler_angles(0.0, 0.0, 0.4 + i as f64),
