@@ -443,6 +443,101 @@ fn batch_checker_with_a_history_answers_as_a_fresh_one() {
     }
 }
 
+/// A motion's verdict does not depend on the checker's history either: the remembered
+/// contacts are tried on a motion's first batch, and skipped on the batches after a free one;
+/// a long-lived checker answers every motion between free states as a fresh one does, and
+/// finds a small ball that only a batch after the first one reaches.
+#[test]
+fn a_motion_is_answered_as_a_fresh_checker_answers_it() {
+    use ember_engine::collision::batch::BatchChecker;
+    use ember_engine::collision::checker::{bisection_order, motion_steps, DEFAULT_RESOLUTION};
+    use rand::SeedableRng;
+    let mut rng = rand::rngs::StdRng::seed_from_u64(8);
+    for name in ["fetch", "panda"] {
+        let robot = Robot::builtin(name).unwrap();
+        let (mut motions, mut contacts, mut balls) = (0, 0, 0);
+        for scene in 0..10 {
+            let Some(env) = batch_scene(&mut rng, &robot, 4 + scene % 4, false) else {
+                continue;
+            };
+            let mut batch = BatchChecker::new(&robot, &env);
+            let mut free_state = |batch: &mut BatchChecker| {
+                let mut q = vec![0.0; robot.dof()];
+                (0..100).find_map(|_| {
+                    robot.sample_uniform(&mut rng, &mut q);
+                    (!batch.state_may_collide(&q)).then(|| q.clone())
+                })
+            };
+            for _ in 0..30 {
+                // Between free states: dozens of states, several batches, and obstacles that
+                // only the states between the first batch's may meet.
+                let (Some(a), Some(b)) = (free_state(&mut batch), free_state(&mut batch)) else {
+                    continue;
+                };
+                let ends = (&a[..], &b[..]);
+                let with_history = batch.motion_may_collide(&robot, DEFAULT_RESOLUTION, ends, true);
+                let fresh = BatchChecker::new(&robot, &env).motion_may_collide(
+                    &robot,
+                    DEFAULT_RESOLUTION,
+                    ends,
+                    true,
+                );
+                assert_eq!(with_history, fresh, "{name}, scene {scene}: {a:?} to {b:?}");
+                motions += 1;
+                contacts += usize::from(fresh);
+                if fresh {
+                    continue;
+                }
+                // A free motion with a small ball put on the tip's link where the second batch's
+                // first state has it: the first batch (the end state and seven states spread
+                // over the motion) misses it, a later one must find it.
+                let n = motion_steps(&robot, &a, &b, DEFAULT_RESOLUTION);
+                let Some(k) = bisection_order(n).nth(7) else {
+                    continue;
+                };
+                let mut q = a.clone();
+                robot.interpolate(&a, &b, k as f64 / n as f64, &mut q);
+                // The centre of the last moving link's first sphere (the tip frame may lie
+                // in the air between fingers).
+                let model = robot.spheres();
+                let s = (0..model.link.len())
+                    .rev()
+                    .find(|&s| robot.link_moves(model.link[s] as usize))
+                    .map(|s| model.ranges[model.link[s] as usize].start)
+                    .unwrap();
+                let pose = robot.link_poses(&q).unwrap()[model.link[s] as usize];
+                let tip = pose * nalgebra::Point3::from(model.center[s]);
+                let mut crowded = env.clone();
+                crowded
+                    .add(Object {
+                        name: "ball".into(),
+                        shape: Shape::Sphere { radius: 0.02 },
+                        pose: Pose::translation(tip.x, tip.y, tip.z),
+                    })
+                    .unwrap();
+                let mut later = BatchChecker::new(&robot, &crowded);
+                if later.state_may_collide(&a) || later.state_may_collide(&b) {
+                    continue;
+                }
+                // The history of the free motion above first, as a search would have it.
+                later.motion_may_collide(&robot, DEFAULT_RESOLUTION, (&b, &a), true);
+                assert!(
+                    later.motion_may_collide(&robot, DEFAULT_RESOLUTION, ends, true),
+                    "{name}, scene {scene}: the ball at a later batch's state missed"
+                );
+                balls += 1;
+            }
+        }
+        eprintln!("{name}: {contacts} contacts in {motions} motions, {balls} balls");
+        // The test must bite: free motions (whose later batches skip the history), motions
+        // in contact, and balls found by the batches after a free first one.
+        assert!(
+            contacts * 5 > motions && contacts * 5 < 4 * motions && balls * 4 > motions,
+            "{name}: {contacts} contacts in {motions} motions, {balls} balls"
+        );
+    }
+}
+
 /// A motion checked with a decision: each state of a flagged batch is checked again alone, and
 /// exactly the states the lanes flag alone are handed to the decision (Panda: no continuous
 /// joints, so a state alone is the same numbers as in its batch). With a decision that clears

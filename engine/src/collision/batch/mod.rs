@@ -230,6 +230,9 @@ pub struct BatchChecker {
     /// The last distinct contacts of spheres with objects the hierarchy found, most recent
     /// first (link, sphere, object): what [`BatchChecker::surely_colliding`] tries.
     screen: Vec<(usize, usize, usize)>,
+    /// True while a batch after a motion's free first batch is checked: the remembered
+    /// contacts are not tried (see [`BatchChecker::states_free`]).
+    skip_recent: bool,
     /// Batches checked, and those a remembered contact ended.
     batches: u64,
     remembered: u64,
@@ -446,6 +449,7 @@ impl BatchChecker {
             batches: 0,
             remembered: 0,
             live: ALL_LANES,
+            skip_recent: false,
             lanes: vec![F8::default(); robot.dof()],
             start: vec![0.0; robot.dof()],
             delta: vec![0.0; robot.dof()],
@@ -633,14 +637,22 @@ impl BatchChecker {
             batch[0] = n;
             filled = 1;
         }
+        // A motion's first batch (the end state and states spread over it) mostly settles
+        // it; those after a free first batch are nearly always free (on the MotionBenchMaker
+        // Fetch sets under 2% of second batches collide), so they skip the remembered contacts
+        // and go straight down the hierarchy.
+        let mut first = true;
         for k in bisection_order(n) {
             batch[filled] = k;
             filled += 1;
             if filled == LANES {
-                if self.states_may_collide(n, &batch) && !self.decided_free(n, &batch, &mut decide)
-                {
+                self.skip_recent = !first;
+                let may_collide = self.states_may_collide(n, &batch);
+                self.skip_recent = false;
+                if may_collide && !self.decided_free(n, &batch, &mut decide) {
                     return false;
                 }
+                first = false;
                 filled = 0;
             }
         }
@@ -648,7 +660,9 @@ impl BatchChecker {
             for i in filled..LANES {
                 batch[i] = batch[filled - 1];
             }
+            self.skip_recent = !first;
             let may_collide = self.states_may_collide(n, &batch);
+            self.skip_recent = false;
             // Only the distinct states count (the filler repeats the last).
             self.states -= (LANES - filled) as u64;
             if may_collide && !self.decided_free(n, &batch[..filled], &mut decide) {
@@ -960,7 +974,7 @@ impl BatchChecker {
             Some(m) => m.clearance(),
             None => None,
         };
-        for k in 0..RECENT {
+        for k in 0..if self.skip_recent { 0 } else { RECENT } {
             let Some((l, s, j)) = self.recent[k] else {
                 break;
             };
