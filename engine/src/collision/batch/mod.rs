@@ -8,7 +8,8 @@
 //! the self-collision pairs (where a long or flat link's box around its spheres, tighter than
 //! its ball, clears most pairs a torso or a base would otherwise pass down to the clusters).
 //! The first lane in contact ends the check, and the spheres and obstacles of the last few
-//! contacts are tried before the hierarchy. Links that never move
+//! contacts are tried before the hierarchy (but on the batches after a motion's free first
+//! batch, which nearly never collide). Links that never move
 //! are not checked against the environment: the scalar checker decides that once, exactly
 //! ([`SphereChecker::blocked`](super::SphereChecker::blocked)), and the planner does not use
 //! this checker when it is so.
@@ -163,8 +164,9 @@ enum ObjectKind {
 #[derive(Clone, Copy)]
 struct Object8 {
     rot_t: [f32; 9],
-    /// True when the rotation turns about the world's z axis alone (as objects standing on a
-    /// floor or a table do): five products place a point in its frame, not nine.
+    /// True when the rotation keeps the z axis on the world's z axis (a turn about the
+    /// vertical, as of objects standing on a floor or a table, or such a turn upside down):
+    /// five products place a point in its frame, not nine.
     upright: bool,
     t: [f32; 3],
     lo: [f32; 3],
