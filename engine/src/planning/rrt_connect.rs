@@ -730,19 +730,15 @@ mod tests {
     #[test]
     fn gathered_extensions_add_only_free_nodes() {
         use crate::planning::UniformSampler;
-        use rand::{Rng, SeedableRng};
+        use rand::SeedableRng;
         let robot = Robot::builtin("fetch").unwrap();
         let mut place = rand::rngs::StdRng::seed_from_u64(3);
-        let objects = (0..14).map(|i| Object {
-            name: format!("box{i}"),
-            shape: Shape::cuboid([0.25, 0.25, 0.25]),
-            pose: Pose::translation(
-                place.random_range(0.3..1.1),
-                place.random_range(-0.8..0.8),
-                place.random_range(0.3..1.5),
-            ),
-        });
-        let env = Environment::from_objects(objects).unwrap();
+        let env = crate::world::environment::random_boxes(
+            &mut place,
+            14,
+            [0.25; 3],
+            [0.3..1.1, -0.8..0.8, 0.3..1.5],
+        );
         let continuous: Vec<bool> = robot.variables().iter().map(|v| v.continuous).collect();
         let grow = |seed: u64| {
             let mut checker = Validity::new(&robot, &env, 1.0 / 32.0, 0.0);

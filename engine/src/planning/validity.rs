@@ -256,9 +256,7 @@ impl<'a> ConfigCheck<'a> for Validity<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::world::Object;
-    use crate::Pose;
-    use rand::{Rng, SeedableRng};
+    use rand::SeedableRng;
 
     /// An extension checked from the step it took answers as one checked from its two ends,
     /// on Fetch (continuous joints, stepped across ±π) among boxes, free and blocked alike.
@@ -266,16 +264,12 @@ mod tests {
     fn a_step_is_checked_as_its_two_ends() {
         let robot = Robot::builtin("fetch").unwrap();
         let mut rng = rand::rngs::StdRng::seed_from_u64(21);
-        let objects = (0..5).map(|i| Object {
-            name: format!("box{i}"),
-            shape: crate::collision::Shape::cuboid([0.4, 0.3, 0.05]),
-            pose: Pose::translation(
-                rng.random_range(0.4..1.0),
-                rng.random_range(-0.5..0.5),
-                rng.random_range(0.3..1.3),
-            ),
-        });
-        let env = Environment::from_objects(objects).unwrap();
+        let env = crate::world::environment::random_boxes(
+            &mut rng,
+            5,
+            [0.4, 0.3, 0.05],
+            [0.4..1.0, -0.5..0.5, 0.3..1.3],
+        );
         let mut sut = Validity::new(&robot, &env, 1.0 / 32.0, 0.0);
         let n = robot.dof();
         let (mut a, mut target) = (vec![0.0; n], vec![0.0; n]);

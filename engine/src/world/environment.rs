@@ -335,6 +335,29 @@ fn check(object: &Object) -> Result<(), WorldError> {
     Ok(())
 }
 
+/// `n` boxes of full size `size`, named `box0`, `box1`, …, each centred at a point drawn from
+/// `within` (x, y, z in turn): the crowded scenes unit tests check against.
+#[cfg(test)]
+pub(crate) fn random_boxes(
+    rng: &mut impl rand::Rng,
+    n: usize,
+    size: [f64; 3],
+    within: [std::ops::Range<f64>; 3],
+) -> Environment {
+    let objects: Vec<Object> = (0..n)
+        .map(|i| Object {
+            name: format!("box{i}"),
+            shape: Shape::cuboid(size),
+            pose: Pose::translation(
+                rng.random_range(within[0].clone()),
+                rng.random_range(within[1].clone()),
+                rng.random_range(within[2].clone()),
+            ),
+        })
+        .collect();
+    Environment::from_objects(objects).unwrap()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

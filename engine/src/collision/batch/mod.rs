@@ -1570,22 +1570,14 @@ fn penetration(o: &Object8, p: [F8; 3], r: f32) -> (F8, F8) {
 #[cfg(all(test, target_arch = "x86_64"))]
 mod tests {
     use super::*;
+    use crate::world::environment::random_boxes;
     use crate::world::Object;
     use crate::Pose;
     use rand::{Rng, SeedableRng};
 
     /// Six random boxes in front of the robot, where arms reach.
     fn six_boxes(rng: &mut rand::rngs::StdRng) -> Environment {
-        let objects = (0..6).map(|i| Object {
-            name: format!("box{i}"),
-            shape: Shape::cuboid([0.3, 0.2, 0.1]),
-            pose: Pose::translation(
-                rng.random_range(0.2..1.0),
-                rng.random_range(-0.6..0.6),
-                rng.random_range(0.2..1.4),
-            ),
-        });
-        Environment::from_objects(objects).unwrap()
+        random_boxes(rng, 6, [0.3, 0.2, 0.1], [0.2..1.0, -0.6..0.6, 0.2..1.4])
     }
 
     /// The AVX2 code (with fused multiply-adds) and the portable code (whose fused
