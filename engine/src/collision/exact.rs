@@ -1,9 +1,9 @@
 //! The exact checker: the robot's collision geometry itself (primitives as they are, meshes as
 //! their convex hulls or decompositions) against the environment and against itself, with our
 //! `f64` GJK ([`super::gjk`]) over the shapes. It decides what must not depend on the sphere
-//! model's conservatism: start and goal validity (naming the contact), the final validation of
-//! every returned path, and the planner's checks near terminal states that only the spheres
-//! touch.
+//! model's conservatism: start and goal validity (naming the contact), the states of a returned
+//! path the sphere lanes cannot clear ([`crate::planning::validity::Validity::path_contact`]),
+//! and the planner's checks near terminal states that only the spheres touch.
 //!
 //! Per configuration: forward kinematics, then each moving link's bounding sphere picks the
 //! objects it reaches, and each of its parts' bounding spheres those of them GJK is asked

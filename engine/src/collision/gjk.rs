@@ -114,7 +114,7 @@ impl Convex {
     }
 
     /// The farthest point along `d` (local frame).
-    fn support(&self, d: &V) -> V {
+    pub(crate) fn support(&self, d: &V) -> V {
         let unit = |d: &V| {
             let n = d.norm();
             if n > 0.0 {

@@ -9,8 +9,8 @@
 //! - [`validity`]: the sphere model with an exact fallback near terminal states.
 //!
 //! [`plan`] runs the whole pipeline: decide start and goal on the exact geometry, solve IK for
-//! pose goals, search and simplify on the sphere model, re-validate the path on the exact
-//! geometry.
+//! pose goals, search and simplify on the sphere model, validate the path on the exact geometry
+//! (the states the sphere lanes cannot clear decided by the exact checker).
 
 pub mod ik;
 pub mod nearest;
@@ -396,9 +396,9 @@ pub fn plan(
     // The returned path is validated on the exact geometry; should the simplified one fail,
     // the search's own path is the fallback.
     let t = Instant::now();
-    let mut verdict = exact_path_contact(checker.exact(), &path, params.resolution);
+    let mut verdict = checker.path_contact(&path);
     if let (Some(_), Some(raw)) = (&verdict, raw) {
-        if exact_path_contact(checker.exact(), &raw, params.resolution).is_none() {
+        if checker.path_contact(&raw).is_none() {
             path = raw;
             verdict = None;
         }
@@ -421,8 +421,9 @@ pub fn plan(
     })
 }
 
-/// The first contact along `path` in the exact geometry, waypoints and edges at `resolution`.
-fn exact_path_contact(
+/// The first contact along `path` in the exact geometry, waypoints and edges at `resolution`,
+/// every state asked of the exact checker (what [`Validity::path_contact`] answers as).
+pub(crate) fn exact_path_contact(
     exact: &mut ExactChecker<'_>,
     path: &[Vec<f64>],
     resolution: f64,

@@ -9,8 +9,9 @@
 //! again of the exact checker. Everywhere else the sphere verdict stands, so the inner loop
 //! stays on the fast path.
 
+use super::exact_path_contact;
 use crate::collision::batch::BatchChecker;
-use crate::collision::checker::{bisect_motion, steps_over, CheckStats};
+use crate::collision::checker::{bisect_motion, steps_over, CheckStats, Contact};
 use crate::collision::exact::ExactChecker;
 use crate::collision::{ConfigCheck, SphereChecker};
 use crate::robot::Robot;
@@ -221,6 +222,57 @@ impl<'a> Validity<'a> {
         }
     }
 
+    /// The first contact along `path` (waypoints, and the states of each edge at the
+    /// resolution) in the exact geometry, as [`ExactChecker::motion_contact`] walks it, or
+    /// `None` when every state is free: the validation of a returned path.
+    ///
+    /// The states go eight at a time through the batch checker in validation mode first. Its
+    /// spheres cover every link's geometry, so a state they clear is free in the exact
+    /// geometry, unless an obstacle could lie wholly inside a link, where spheres need not
+    /// reach (the batch checker flags that possibility too). Only the states flagged go to
+    /// the exact checker; an edge with a state it finds in contact is walked again in order
+    /// by the exact checker, to name its first contact.
+    pub fn path_contact(&mut self, path: &[Vec<f64>]) -> Option<Contact> {
+        let (robot, resolution) = (self.robot, self.resolution);
+        if let Some(c) = self.exact.static_contact() {
+            return Some(c.clone());
+        }
+        let mut batch = match self.batch.take() {
+            Some(b) if path.len() >= 2 => b,
+            other => {
+                self.batch = other;
+                return exact_path_contact(&mut self.exact, path, resolution);
+            }
+        };
+        if !batch.validate(true) {
+            self.batch = Some(batch);
+            return exact_path_contact(&mut self.exact, path, resolution);
+        }
+        let mut state = std::mem::take(&mut self.state);
+        let exact = &mut self.exact;
+        let mut found = None;
+        if batch.state_may_collide(&path[0]) {
+            found = exact.contact(&path[0]);
+        }
+        for w in path.windows(2) {
+            if found.is_some() {
+                break;
+            }
+            let (a, b) = (&w[0][..], &w[1][..]);
+            let decide = |_: &mut BatchChecker, k, n| {
+                robot.interpolate(a, b, k as f64 / n as f64, &mut state);
+                exact.is_valid(&state)
+            };
+            if !batch.motion_free(robot, resolution, (a, b), true, Some(decide)) {
+                found = exact.motion_contact(a, b, resolution).map(|(_, c)| c);
+            }
+        }
+        batch.validate(false);
+        self.state = state;
+        self.batch = Some(batch);
+        found
+    }
+
     /// True when no state of the motion from `a` to `b` can be within `exact_radius` of an
     /// anchor (each is at most the motion's length from `a`).
     fn far_from_anchors(&self, a: &[f64], b: &[f64]) -> bool {
@@ -256,7 +308,136 @@ impl<'a> ConfigCheck<'a> for Validity<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rand::SeedableRng;
+    use crate::collision::Shape;
+    use crate::robot::spheres::fit::Part;
+    use crate::world::Object;
+    use crate::Pose;
+    use nalgebra::Point3;
+    use rand::{Rng, SeedableRng};
+
+    /// The validation of a path answers as the exact checker walking it does, the same
+    /// contact named, on Fetch and the Panda among boxes small enough to fit inside a link
+    /// and large ones.
+    #[test]
+    fn a_path_is_validated_as_the_exact_checker_walks_it() {
+        let resolution = 1.0 / 32.0;
+        for name in ["fetch", "panda"] {
+            let robot = Robot::builtin(name).unwrap();
+            let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+            let n = robot.dof();
+            let (mut free, mut hit) = (0, 0);
+            for scene in 0..8 {
+                let size = if scene % 2 == 0 {
+                    [0.03, 0.04, 0.05]
+                } else {
+                    [0.4, 0.3, 0.05]
+                };
+                let env = crate::world::environment::random_boxes(
+                    &mut rng,
+                    6,
+                    size,
+                    [0.1..0.9, -0.6..0.6, 0.1..1.2],
+                );
+                let mut sut = Validity::new(&robot, &env, resolution, 0.0);
+                let mut exact = ExactChecker::new(&robot, &env);
+                for _ in 0..25 {
+                    // Three waypoints, each a short step from the last.
+                    let mut path = vec![vec![0.0; n]];
+                    robot.sample_uniform(&mut rng, &mut path[0]);
+                    for _ in 0..2 {
+                        let (mut target, mut next, mut step) =
+                            (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+                        robot.sample_uniform(&mut rng, &mut target);
+                        let last = path.last().unwrap();
+                        let d = robot.distance(last, &target);
+                        let t = rng.random_range(0.1..0.6f64).min(d) / d;
+                        robot.step_towards(last, &target, t, &mut next, &mut step);
+                        path.push(next);
+                    }
+                    let want = exact_path_contact(&mut exact, &path, resolution);
+                    assert_eq!(sut.path_contact(&path), want, "{name}: {path:?}");
+                    free += usize::from(want.is_none());
+                    hit += usize::from(want.is_some());
+                }
+            }
+            assert!(
+                free > 20 && hit > 20,
+                "{name}: {free} free, {hit} in contact"
+            );
+        }
+    }
+
+    /// A grain wholly inside a link, where the link's spheres do not reach it, is found by the
+    /// validation, though the spheres clear every state of the path.
+    #[test]
+    fn a_grain_hidden_inside_a_link_is_found() {
+        let robot = Robot::builtin("fetch").unwrap();
+        let (link, point, gap) = deepest_pocket(&robot);
+        let radius = 0.3e-3;
+        assert!(
+            gap > radius + 2e-4,
+            "no link leaves room inside its spheres for a grain: {gap} m at most"
+        );
+        let q = robot.named_state("stow").unwrap().to_vec();
+        let at = robot.link_poses(&q).unwrap()[link] * Point3::from(point);
+        let env = Environment::from_objects(vec![Object {
+            name: "grain".into(),
+            shape: Shape::Sphere { radius },
+            pose: Pose::translation(at.x, at.y, at.z),
+        }])
+        .unwrap();
+        assert!(
+            !BatchChecker::new(&robot, &env).state_may_collide(&q),
+            "the spheres reach the grain"
+        );
+        let mut sut = Validity::new(&robot, &env, 1.0 / 32.0, 0.0);
+        // A turn of the last joint, which leaves the link, and the grain inside it, in place.
+        let mut other = q.clone();
+        *other.last_mut().unwrap() += 0.3;
+        let moved = robot.link_poses(&other).unwrap()[link];
+        assert_eq!(moved, robot.link_poses(&q).unwrap()[link], "the link moves");
+        for path in [vec![q.clone(), other.clone()], vec![other, q]] {
+            let want = exact_path_contact(sut.exact(), &path, 1.0 / 32.0);
+            assert!(want.is_some());
+            assert_eq!(sut.path_contact(&path), want);
+        }
+    }
+
+    /// The point inside a link's geometry farthest from its spheres (among seeded samples):
+    /// link, point in the link frame, and its distance to the nearest sphere.
+    fn deepest_pocket(robot: &Robot) -> (usize, [f64; 3], f64) {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        let mut best = (0, [0.0; 3], f64::NEG_INFINITY);
+        for (l, link) in robot.links().iter().enumerate() {
+            let parts: Vec<Part> = link.collision.iter().map(Part::new).collect();
+            let spheres: Vec<_> = robot.spheres().link_spheres(l).collect();
+            let corners = parts.iter().flat_map(|p| p.triangles().iter().flatten());
+            let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+            for c in corners {
+                for a in 0..3 {
+                    lo[a] = lo[a].min(c[a]);
+                    hi[a] = hi[a].max(c[a]);
+                }
+            }
+            if parts.is_empty() {
+                continue;
+            }
+            for _ in 0..40_000 {
+                let p: [f64; 3] = std::array::from_fn(|a| rng.random_range(lo[a]..=hi[a]));
+                if parts.iter().all(|part| part.depth(p) <= 0.0) {
+                    continue;
+                }
+                let gap = spheres
+                    .iter()
+                    .map(|(c, r)| (Point3::from(*c) - Point3::from(p)).norm() - r)
+                    .fold(f64::INFINITY, f64::min);
+                if gap > best.2 {
+                    best = (l, p, gap);
+                }
+            }
+        }
+        best
+    }
 
     /// An extension checked from the step it took answers as one checked from its two ends,
     /// on Fetch (continuous joints, stepped across ±π) among boxes, free and blocked alike.
