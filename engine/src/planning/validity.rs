@@ -310,14 +310,15 @@ mod tests {
     use super::*;
     use crate::collision::Shape;
     use crate::robot::spheres::fit::Part;
+    use crate::world::map::{MapParams, OccupancyMap};
     use crate::world::Object;
     use crate::Pose;
     use nalgebra::Point3;
     use rand::{Rng, SeedableRng};
 
     /// The validation of a path answers as the exact checker walking it does, the same
-    /// contact named, on Fetch and the Panda among boxes small enough to fit inside a link
-    /// and large ones.
+    /// contact named, on Fetch and the Panda among boxes small enough to fit inside a link,
+    /// large ones, and a map's scattered voxels.
     #[test]
     fn a_path_is_validated_as_the_exact_checker_walks_it() {
         let resolution = 1.0 / 32.0;
@@ -326,18 +327,24 @@ mod tests {
             let mut rng = rand::rngs::StdRng::seed_from_u64(5);
             let n = robot.dof();
             let (mut free, mut hit) = (0, 0);
-            for scene in 0..8 {
-                let size = if scene % 2 == 0 {
+            for scene in 0..9 {
+                let size = if scene % 3 == 0 {
                     [0.03, 0.04, 0.05]
                 } else {
                     [0.4, 0.3, 0.05]
                 };
-                let env = crate::world::environment::random_boxes(
-                    &mut rng,
-                    6,
-                    size,
-                    [0.1..0.9, -0.6..0.6, 0.1..1.2],
-                );
+                let within = [0.1..0.9, -0.6..0.6, 0.1..1.2];
+                let mut env =
+                    crate::world::environment::random_boxes(&mut rng, 6, size, within.clone());
+                if scene % 3 == 2 {
+                    let mut map = OccupancyMap::new(MapParams::default());
+                    for _ in 0..400 {
+                        let p = within.clone().map(|r| rng.random_range(r));
+                        map.set_voxel(map.key_of(p), true);
+                    }
+                    env = Environment::new();
+                    env.set_map(Some(std::sync::Arc::new(map)));
+                }
                 let mut sut = Validity::new(&robot, &env, resolution, 0.0);
                 let mut exact = ExactChecker::new(&robot, &env);
                 for _ in 0..25 {
@@ -367,10 +374,11 @@ mod tests {
         }
     }
 
-    /// A grain wholly inside a link, where the link's spheres do not reach it, is found by the
-    /// validation, though the spheres clear every state of the path.
+    /// A grain, and a voxel of a fine map, wholly inside a link where the link's spheres do
+    /// not reach them, are found by the validation, though the spheres clear every state of
+    /// the path.
     #[test]
-    fn a_grain_hidden_inside_a_link_is_found() {
+    fn an_obstacle_hidden_inside_a_link_is_found() {
         let robot = Robot::builtin("fetch").unwrap();
         let (link, point, gap) = deepest_pocket(&robot);
         let radius = 0.3e-3;
@@ -380,23 +388,39 @@ mod tests {
         );
         let q = robot.named_state("stow").unwrap().to_vec();
         let at = robot.link_poses(&q).unwrap()[link] * Point3::from(point);
-        let env = Environment::from_objects(vec![Object {
+        let grain = Environment::from_objects(vec![Object {
             name: "grain".into(),
             shape: Shape::Sphere { radius },
             pose: Pose::translation(at.x, at.y, at.z),
         }])
         .unwrap();
+        assert_hidden_is_found(&robot, &grain, link, &q);
+        // A voxel holding the point, its cube (at most 0.87 of its edge from the point) clear
+        // of the spheres.
+        let mut map = OccupancyMap::new(MapParams {
+            resolution: gap / 2.0,
+            ..MapParams::default()
+        });
+        map.set_voxel(map.key_of([at.x, at.y, at.z]), true);
+        let mut voxel = Environment::new();
+        voxel.set_map(Some(std::sync::Arc::new(map)));
+        assert_hidden_is_found(&robot, &voxel, link, &q);
+    }
+
+    /// The spheres clear `q` in `env`, the exact geometry does not, and the validation of
+    /// paths to and from `q` turning the last joint (which leaves `link` in place) finds the
+    /// exact checker's contact.
+    fn assert_hidden_is_found(robot: &Robot, env: &Environment, link: usize, q: &[f64]) {
         assert!(
-            !BatchChecker::new(&robot, &env).state_may_collide(&q),
-            "the spheres reach the grain"
+            !BatchChecker::new(robot, env).state_may_collide(q),
+            "the spheres reach the obstacle"
         );
-        let mut sut = Validity::new(&robot, &env, 1.0 / 32.0, 0.0);
-        // A turn of the last joint, which leaves the link, and the grain inside it, in place.
-        let mut other = q.clone();
+        let mut sut = Validity::new(robot, env, 1.0 / 32.0, 0.0);
+        let mut other = q.to_vec();
         *other.last_mut().unwrap() += 0.3;
         let moved = robot.link_poses(&other).unwrap()[link];
-        assert_eq!(moved, robot.link_poses(&q).unwrap()[link], "the link moves");
-        for path in [vec![q.clone(), other.clone()], vec![other, q]] {
+        assert_eq!(moved, robot.link_poses(q).unwrap()[link], "the link moves");
+        for path in [vec![q.to_vec(), other.clone()], vec![other, q.to_vec()]] {
             let want = exact_path_contact(sut.exact(), &path, 1.0 / 32.0);
             assert!(want.is_some());
             assert_eq!(sut.path_contact(&path), want);

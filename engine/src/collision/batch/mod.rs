@@ -35,6 +35,7 @@ pub mod lanes;
 use crate::collision::checker::{bisection_order, steps_over};
 use crate::collision::Shape;
 use crate::robot::fk::JointFrames;
+use crate::robot::spheres::pockets::Pockets;
 use crate::robot::{Motion, Robot};
 use crate::world::map::{Clearance, OccupancyMap};
 use crate::world::Environment;
@@ -244,6 +245,10 @@ pub struct BatchChecker {
     points: Vec<[f32; 3]>,
     /// Objects small enough to fit inside a moving link's bound.
     hideable: Vec<usize>,
+    /// Where obstacles of a given size could hide inside the links, clear of their spheres.
+    pockets: Arc<Pockets>,
+    /// In validation with a map: per link, true when a voxel could hide inside it.
+    voxel_room: Option<Arc<[bool]>>,
     /// False when a link has exact geometry but no spheres: the lanes do not cover the
     /// robot, and validation is left to the exact checker.
     covers: bool,
@@ -478,6 +483,10 @@ impl BatchChecker {
             part_points,
             points,
             hideable: Vec::new(),
+            pockets: Arc::new(Pockets::new(links.iter().map(|l| &l.collision[..]), |l| {
+                model.link_spheres(l).collect()
+            })),
+            voxel_room: None,
             covers,
             batches: 0,
             remembered: 0,
@@ -870,9 +879,9 @@ impl BatchChecker {
     /// a state they clear is free in the exact geometry unless an object, or a part of
     /// another link, lies wholly inside a link. Every point of such an obstacle is inside the
     /// link's bound ball and box, so this asks whether the centre of an object small enough to
-    /// fit, or a point of each part of the other link of a self pair whose bounds meet, lies
-    /// within a link's bound. (A link wholly inside an obstacle touches spheres: they are
-    /// centred inside the link.) Called only for batches the spheres clear, every moving
+    /// fit, an occupied voxel (for the links with room for one), or a point of each part of
+    /// the other link of a self pair whose bounds meet, lies within a link's bound. (A link
+    /// wholly inside an obstacle touches spheres: they are centred inside the link.) Called only for batches the spheres clear, every moving
     /// link's bound placed.
     #[inline(never)]
     fn may_hide(&mut self) -> bool {
@@ -901,6 +910,13 @@ impl BatchChecker {
                     return true;
                 }
             }
+            // A voxel (holding a ball of half its edge) fits in the link's pockets: any
+            // occupied voxel within the link's bound may be one.
+            if let (Some(map), Some(room)) = (&self.map, &self.voxel_room) {
+                if room[l] && unclear_lanes(map.clearance(), b, r, self.live) != 0 {
+                    return true;
+                }
+            }
         }
         let mut next = 0;
         while let Some(k) = next_overlapping(&self.pairs, &self.bounds, next) {
@@ -921,12 +937,16 @@ impl BatchChecker {
 
     /// Validation mode on or off: a batch is also flagged where an obstacle could hide
     /// inside a link ([`BatchChecker::may_hide`]). Returns false, and stays off, when the
-    /// lanes cannot stand for the exact geometry: a link with exact parts but no spheres, or
-    /// an occupancy map (a voxel could hide inside a link where its spheres do not reach).
+    /// lanes cannot stand for the exact geometry (a link with exact parts but no spheres).
+    /// With a map, the links a voxel could hide in are worked out on the first validation at
+    /// its resolution ([`Pockets`]).
     pub(crate) fn validate(&mut self, on: bool) -> bool {
-        let able = self.covers && self.map.is_none();
-        self.validating = on && able;
-        able
+        self.validating = on && self.covers;
+        self.voxel_room = match &self.map {
+            Some(map) if self.validating => Some(self.pockets.room_for(map.resolution() / 2.0)),
+            _ => None,
+        };
+        self.covers
     }
 
     /// Writes the pose of every moving link for the eight lanes' configurations.

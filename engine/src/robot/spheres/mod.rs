@@ -3,7 +3,8 @@
 //! at most [`CLUSTER_SIZE`] neighbouring spheres for the checker's hierarchy.
 //!
 //! - [`fit`]: the fitter (bounded protrusion, greedy cover of the surface);
-//! - [`cache`]: fitted spheres cached by content hash, in memory and on disk.
+//! - [`cache`]: fitted spheres cached by content hash, in memory and on disk;
+//! - [`pockets`]: whether an obstacle could hide inside a link clear of its spheres.
 //!
 //! [`measure`] reports a model's protrusion and coverage against any geometry; [`placed`] puts
 //! a model at one configuration.
@@ -11,6 +12,7 @@
 pub mod cache;
 pub mod fit;
 pub mod placed;
+pub mod pockets;
 
 pub use placed::PlacedSpheres;
 
