@@ -109,6 +109,12 @@ fn content_key(shapes: &[LinkShape], protrusion: f64) -> [u8; 32] {
     let mut h = Sha256::new();
     h.update(FIT_VERSION.as_bytes());
     h.update(protrusion.to_le_bytes());
+    hash_shapes(&mut h, shapes);
+    h.finalize().into()
+}
+
+/// Feeds each part's pose and geometry to `h`.
+pub(crate) fn hash_shapes(h: &mut Sha256, shapes: &[LinkShape]) {
     for ls in shapes {
         let t = ls.origin.translation.vector;
         let q = ls.origin.rotation.coords;
@@ -127,7 +133,6 @@ fn content_key(shapes: &[LinkShape], protrusion: f64) -> [u8; 32] {
             }
         }
     }
-    h.finalize().into()
 }
 
 fn hex(bytes: &[u8]) -> String {

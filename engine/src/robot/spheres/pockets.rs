@@ -8,7 +8,9 @@
 
 use super::fit::{Part, Sphere};
 use crate::robot::LinkShape;
-use std::sync::{Arc, Mutex};
+use rustc_hash::FxHashMap;
+use sha2::{Digest, Sha256};
+use std::sync::{Arc, Mutex, OnceLock};
 
 /// Cells are split until their half diagonal is this fraction of the radius asked about; a
 /// cell still undecided then counts as room.
@@ -67,6 +69,31 @@ pub(crate) fn has_room(parts: &[Part], spheres: &[Sphere], t: f64) -> bool {
     false
 }
 
+/// [`has_room`] of one link's geometry and spheres for one radius, kept per process by
+/// content (a robot copy holding an object asks again only of the object's link).
+fn link_has_room(shapes: &[LinkShape], spheres: &[Sphere], t: f64) -> bool {
+    static MEMO: OnceLock<Mutex<FxHashMap<[u8; 32], bool>>> = OnceLock::new();
+    let mut h = Sha256::new();
+    super::cache::hash_shapes(&mut h, shapes);
+    for (c, r) in spheres {
+        for v in [c[0], c[1], c[2], *r] {
+            h.update(v.to_le_bytes());
+        }
+    }
+    h.update(t.to_le_bytes());
+    let key: [u8; 32] = h.finalize().into();
+    let memo = MEMO.get_or_init(Default::default);
+    if let Some(&room) = memo.lock().unwrap_or_else(|e| e.into_inner()).get(&key) {
+        return room;
+    }
+    let parts: Vec<Part> = shapes.iter().map(Part::new).collect();
+    let room = has_room(&parts, spheres, t);
+    memo.lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .insert(key, room);
+    room
+}
+
 /// Per link, whether an obstacle holding a ball of a given radius may hide inside it
 /// ([`has_room`]), worked out on first asking for each radius and kept.
 pub struct Pockets {
@@ -100,10 +127,7 @@ impl Pockets {
         let room: Arc<[bool]> = self
             .links
             .iter()
-            .map(|(shapes, spheres)| {
-                let parts: Vec<Part> = shapes.iter().map(Part::new).collect();
-                has_room(&parts, spheres, t)
-            })
+            .map(|(shapes, spheres)| link_has_room(shapes, spheres, t))
             .collect();
         self.lock().push((key, room.clone()));
         room
