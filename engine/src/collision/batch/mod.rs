@@ -30,15 +30,16 @@
 //! baseline target; the arithmetic is the same (products are summed by fused multiply-adds
 //! on both, see [`lanes`]).
 
+mod hiding;
 pub mod lanes;
 
 use crate::collision::checker::{bisection_order, steps_over};
 use crate::collision::Shape;
 use crate::robot::fk::JointFrames;
-use crate::robot::spheres::pockets::Pockets;
 use crate::robot::{Motion, Robot};
 use crate::world::map::{Clearance, OccupancyMap};
 use crate::world::Environment;
+use hiding::Hiding;
 use lanes::{boxes_overlapping, edge_fractions, edge_lanes, has_avx2, Pose8, ALL_LANES, F8, LANES};
 use std::sync::Arc;
 
@@ -237,21 +238,10 @@ pub struct BatchChecker {
     /// contacts are not tried (see [`BatchChecker::states_free`]).
     skip_recent: bool,
     /// True while a returned path is validated: a batch is also flagged where an obstacle
-    /// could lie inside a link without touching its spheres ([`BatchChecker::may_hide`]).
+    /// could lie inside a link without touching its spheres ([`hiding`]).
     validating: bool,
-    /// Per link: its exact parts' numbers; per part, a point of it, in the frame the link
-    /// rides in.
-    part_points: Vec<std::ops::Range<usize>>,
-    points: Vec<[f32; 3]>,
-    /// Objects small enough to fit inside a moving link's bound.
-    hideable: Vec<usize>,
-    /// Where obstacles of a given size could hide inside the links, clear of their spheres.
-    pockets: Arc<Pockets>,
-    /// In validation with a map: per link, true when a voxel could hide inside it.
-    voxel_room: Option<Arc<[bool]>>,
-    /// False when a link has exact geometry but no spheres: the lanes do not cover the
-    /// robot, and validation is left to the exact checker.
-    covers: bool,
+    /// What validation asks of the robot's parts and the links' pockets.
+    hiding: Hiding,
     /// Batches checked, and those a remembered contact ended.
     batches: u64,
     remembered: u64,
@@ -434,20 +424,7 @@ impl BatchChecker {
             .collect();
         let n_links = links.len();
         assert!(pairs.iter().all(|p| p.a.max(p.b) < n_links));
-        // A point of each exact part (its support point along x: on the part, wherever its
-        // box's centre lies), for the validation's test of parts inside other links.
-        let exact = robot.exact_model();
-        let (mut part_points, mut points) = (Vec::with_capacity(n_links), Vec::new());
-        for l in 0..n_links {
-            let start = points.len();
-            for part in exact.link_parts(l) {
-                let local = part.convex.support(&nalgebra::Vector3::x());
-                let c = part.origin * nalgebra::Point3::from(local);
-                points.push(place(l, [c.x, c.y, c.z]));
-            }
-            part_points.push(start..points.len());
-        }
-        let covers = (0..n_links).all(|l| exact.link_parts(l).is_empty() || bound[l].is_some());
+        let hiding = Hiding::for_robot(robot, &bound, place);
         // Links come parents first (`Robot::links`), so a pose is computed after its parent's.
         debug_assert!((0..n_links).all(|l| links[l].parent.is_none_or(|p| frame[p] < l)));
         let posed = (0..n_links)
@@ -480,14 +457,7 @@ impl BatchChecker {
             recent: [None; RECENT],
             screen: Vec::with_capacity(SCREEN),
             validating: false,
-            part_points,
-            points,
-            hideable: Vec::new(),
-            pockets: Arc::new(Pockets::new(links.iter().map(|l| &l.collision[..]), |l| {
-                model.link_spheres(l).collect()
-            })),
-            voxel_room: None,
-            covers,
+            hiding,
             batches: 0,
             remembered: 0,
             live: ALL_LANES,
@@ -575,19 +545,6 @@ impl BatchChecker {
                     std::array::from_fn(|i| F8(std::array::from_fn(|k| lane(k, true, i)))),
                 )
             }));
-        // An object fits inside a link only if its box's longest side fits in the link's
-        // bound ball.
-        let widest = self
-            .moving
-            .iter()
-            .filter_map(|&l| self.bound[l])
-            .fold(0.0f32, |w, (_, r)| w.max(2.0 * r));
-        self.hideable.clear();
-        self.hideable.extend(
-            (0..self.objects.len()).filter(|&o| {
-                (0..3).all(|i| self.objects[o].hi[i] - self.objects[o].lo[i] <= widest)
-            }),
-        );
         self.map = map;
         self.states = 0;
         self.batches = 0;
@@ -872,81 +829,6 @@ impl BatchChecker {
         // The environment places each moving link's bound as it reaches it (most batches end
         // at the first link or two); the self pairs need them all, placed by then.
         self.env_contact() || self.self_contact() || (self.validating && self.may_hide())
-    }
-
-    /// True when, in some lane, an obstacle may lie wholly inside a link without touching
-    /// its spheres. The spheres cover each link's surface (and nearly always its inside), so
-    /// a state they clear is free in the exact geometry unless an object, or a part of
-    /// another link, lies wholly inside a link. Every point of such an obstacle is inside the
-    /// link's bound ball and box, so this asks whether the centre of an object small enough to
-    /// fit, an occupied voxel (for the links with room for one), or a point of each part of
-    /// the other link of a self pair whose bounds meet, lies within a link's bound. (A link
-    /// wholly inside an obstacle touches spheres: they are centred inside the link.) Called only for batches the spheres clear, every moving
-    /// link's bound placed.
-    #[inline(never)]
-    fn may_hide(&mut self) -> bool {
-        #[cfg(target_arch = "x86_64")]
-        if self.avx2 {
-            // SAFETY: the CPU has AVX2 (checked at construction).
-            return unsafe { self.may_hide_avx2() };
-        }
-        self.may_hide_lanes()
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    unsafe fn may_hide_avx2(&mut self) -> bool {
-        self.may_hide_lanes()
-    }
-
-    #[inline(always)]
-    fn may_hide_lanes(&mut self) -> bool {
-        for &l in &self.moving {
-            let (_, r) = self.bound[l].unwrap_or_default();
-            let b = self.bounds[l];
-            for &o in &self.hideable {
-                let p = self.objects[o].t.map(F8::splat);
-                if overlap(p, MARGIN, b, r) && self.box_reached(l, p, MARGIN) {
-                    return true;
-                }
-            }
-            // A voxel (holding a ball of half its edge) fits in the link's pockets: any
-            // occupied voxel within the link's bound may be one.
-            if let (Some(map), Some(room)) = (&self.map, &self.voxel_room) {
-                if room[l] && unclear_lanes(map.clearance(), b, r, self.live) != 0 {
-                    return true;
-                }
-            }
-        }
-        let mut next = 0;
-        while let Some(k) = next_overlapping(&self.pairs, &self.bounds, next) {
-            next = k + 1;
-            let SelfPair { a, b, ra, rb, .. } = self.pairs[k];
-            for (x, y, ry) in [(a, b, rb), (b, a, ra)] {
-                let pose = &self.poses[self.frame[x]];
-                for &c in &self.points[self.part_points[x].clone()] {
-                    let p = pose.apply_const_on(c, self.avx2);
-                    if overlap(p, MARGIN, self.bounds[y], ry) && self.box_reached(y, p, MARGIN) {
-                        return true;
-                    }
-                }
-            }
-        }
-        false
-    }
-
-    /// Validation mode on or off: a batch is also flagged where an obstacle could hide
-    /// inside a link ([`BatchChecker::may_hide`]). Returns false, and stays off, when the
-    /// lanes cannot stand for the exact geometry (a link with exact parts but no spheres).
-    /// With a map, the links a voxel could hide in are worked out on the first validation at
-    /// its resolution ([`Pockets`]).
-    pub(crate) fn validate(&mut self, on: bool) -> bool {
-        self.validating = on && self.covers;
-        self.voxel_room = match &self.map {
-            Some(map) if self.validating => Some(self.pockets.room_for(map.resolution() / 2.0)),
-            _ => None,
-        };
-        self.covers
     }
 
     /// Writes the pose of every moving link for the eight lanes' configurations.

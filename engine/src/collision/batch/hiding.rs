@@ -1,0 +1,246 @@
+//! What the batch checker adds when it validates a returned path
+//! ([`crate::planning::validity::Validity::path_contact`]): the spheres cover each link's
+//! surface, so a state they clear is free in the exact geometry unless an obstacle (an object,
+//! a map's voxel, a part of another link) lies wholly inside a link, where the spheres need
+//! not reach. Such an obstacle holds a ball of its inradius clear of the link's spheres, which
+//! only a link with room for that ball can give ([`Pockets`]); and every point of it is
+//! inside the link's bound ball and box. So validation also flags a batch where, in some lane,
+//! the centre of an object, an occupied voxel, or a point of a part of the other link of a
+//! self pair whose bounds meet, lies within the bound of a link with room for it. (A link
+//! wholly inside an obstacle touches spheres: they are centred inside the link.)
+
+use super::lanes::F8;
+use super::{overlap, unclear_lanes, BatchChecker, ObjectKind, SelfPair, MARGIN};
+use crate::robot::spheres::fit::Part;
+use crate::robot::spheres::pockets::Pockets;
+use crate::robot::Robot;
+use std::ops::Range;
+use std::sync::Arc;
+
+/// The radii room is asked for: an obstacle's inradius counts as the largest of them not
+/// above it (room for a larger ball implies room for a smaller one), so a robot's pockets are
+/// worked out for a few radii only. Below the smallest, room is assumed.
+const LADDER: [f64; 5] = [0.0005, 0.001, 0.002, 0.004, 0.008];
+
+/// The robot's parts as validation needs them, and what may hide where in the environment
+/// being validated.
+#[derive(Clone)]
+pub(super) struct Hiding {
+    /// Per link: its exact parts' numbers; per part, a point of it (in the frame its link
+    /// rides in) and the radius of a ball inside it.
+    part_points: Vec<Range<usize>>,
+    points: Vec<([f32; 3], f64)>,
+    /// False when a link has exact geometry but no spheres: the lanes do not cover the robot,
+    /// and validation is left to the exact checker.
+    pub(super) covers: bool,
+    pockets: Arc<Pockets>,
+    /// Self pairs (their index) with a part (its point) of link `x` that could hide in link
+    /// `y`: `(pair, x, y, point)`; worked out on the first validation.
+    parts: Option<Vec<(usize, usize, usize, usize)>>,
+    /// In the validation under way: the moving links and the objects that could hide in
+    /// them, and per link whether a voxel of the map could.
+    objects: Vec<(usize, usize)>,
+    voxels: Option<Arc<[bool]>>,
+}
+
+impl Hiding {
+    /// The parts of `robot`, their points placed by `place` (link, point in the link frame) in
+    /// the frame the link rides in; `bound` per link, the sphere bound if it has spheres.
+    pub(super) fn for_robot(
+        robot: &Robot,
+        bound: &[Option<([f32; 3], f32)>],
+        place: impl Fn(usize, [f64; 3]) -> [f32; 3],
+    ) -> Self {
+        let exact = robot.exact_model();
+        let links = robot.links();
+        let (mut part_points, mut points) = (Vec::with_capacity(links.len()), Vec::new());
+        for (l, link) in links.iter().enumerate() {
+            let start = points.len();
+            for (part, shape) in exact.link_parts(l).iter().zip(&link.collision) {
+                // Its support point along x: on the part, wherever its box's centre lies; the
+                // depth of that centre: a ball that deep is inside the part (none if outside).
+                let local = part.convex.support(&nalgebra::Vector3::x());
+                let c = part.origin * nalgebra::Point3::from(local);
+                let inradius = Part::new(shape).depth(part.center).max(0.0);
+                points.push((place(l, [c.x, c.y, c.z]), inradius));
+            }
+            part_points.push(start..points.len());
+        }
+        let covers = (0..links.len()).all(|l| exact.link_parts(l).is_empty() || bound[l].is_some());
+        let spheres = robot.spheres();
+        Hiding {
+            part_points,
+            points,
+            covers,
+            pockets: Arc::new(Pockets::new(links.iter().map(|l| &l.collision[..]), |l| {
+                spheres.link_spheres(l).collect()
+            })),
+            parts: None,
+            objects: Vec::new(),
+            voxels: None,
+        }
+    }
+
+    /// Per link, whether an obstacle with inradius `rho` could hide in it.
+    fn room(&self, rho: f64) -> Option<Arc<[bool]>> {
+        let t = LADDER.iter().rev().find(|&&t| t <= rho)?;
+        Some(self.pockets.room_for(*t))
+    }
+}
+
+impl BatchChecker {
+    /// Validation mode on or off: a batch is also flagged where an obstacle could hide
+    /// inside a link ([`BatchChecker::may_hide`]). Returns false, and stays off, when the
+    /// lanes cannot stand for the exact geometry (a link with exact parts but no spheres).
+    /// The links' room is worked out on the first validation that needs it ([`Pockets`]).
+    pub(crate) fn validate(&mut self, on: bool) -> bool {
+        self.validating = on && self.hiding.covers;
+        if !self.validating {
+            return self.hiding.covers;
+        }
+        let h = &self.hiding;
+        if h.parts.is_none() {
+            let mut parts = Vec::new();
+            for (k, &SelfPair { a, b, .. }) in self.pairs.iter().enumerate() {
+                for (x, y) in [(a, b), (b, a)] {
+                    for i in h.part_points[x].clone() {
+                        if h.room(h.points[i].1).is_none_or(|room| room[y]) {
+                            parts.push((k, x, y, i));
+                        }
+                    }
+                }
+            }
+            self.hiding.parts = Some(parts);
+        }
+        let mut objects = std::mem::take(&mut self.hiding.objects);
+        objects.clear();
+        for (o, object) in self.objects.iter().enumerate() {
+            let room = self.hiding.room(f64::from(inradius(object.kind)));
+            for &l in &self.moving {
+                if room.as_ref().is_none_or(|room| room[l]) {
+                    objects.push((l, o));
+                }
+            }
+        }
+        self.hiding.objects = objects;
+        self.hiding.voxels = self
+            .map
+            .as_ref()
+            .map(|m| self.hiding.pockets.room_for(m.resolution() / 2.0));
+        true
+    }
+
+    /// True when, in some lane, an obstacle may lie wholly inside a link without touching its
+    /// spheres (see the module docs). Asked only of batches the spheres clear, every moving
+    /// link's bound placed.
+    #[inline(never)]
+    pub(super) fn may_hide(&mut self) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: the CPU has AVX2 (checked at construction).
+            return unsafe { self.may_hide_avx2() };
+        }
+        self.may_hide_lanes()
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn may_hide_avx2(&mut self) -> bool {
+        self.may_hide_lanes()
+    }
+
+    #[inline(always)]
+    fn may_hide_lanes(&mut self) -> bool {
+        let h = &self.hiding;
+        for &(l, o) in &h.objects {
+            let p = self.objects[o].t.map(F8::splat);
+            if self.within_bound(l, p) {
+                return true;
+            }
+        }
+        // A voxel holds a ball of half its edge: any occupied voxel within the bound of a link
+        // with room for that ball may be one.
+        if let (Some(map), Some(room)) = (&self.map, &h.voxels) {
+            for &l in &self.moving {
+                let (_, r) = self.bound[l].unwrap_or_default();
+                if room[l] && unclear_lanes(map.clearance(), self.bounds[l], r, self.live) != 0 {
+                    return true;
+                }
+            }
+        }
+        for &(k, x, y, i) in h.parts.as_deref().unwrap_or_default() {
+            let SelfPair { a, b, ra, rb, .. } = self.pairs[k];
+            if !overlap(self.bounds[a], ra, self.bounds[b], rb) {
+                continue;
+            }
+            let p = self.poses[self.frame[x]].apply_const_on(h.points[i].0, self.avx2);
+            if self.within_bound(y, p) {
+                return true;
+            }
+        }
+        false
+    }
+
+    /// True when the point `p` (eight lanes) is within link `l`'s bound ball and box in some
+    /// lane (a hair of slack: its rounding).
+    #[inline(always)]
+    fn within_bound(&self, l: usize, p: [F8; 3]) -> bool {
+        let (_, r) = self.bound[l].unwrap_or_default();
+        overlap(p, MARGIN, self.bounds[l], r) && self.box_reached(l, p, MARGIN)
+    }
+}
+
+/// The radius of a ball inside an object of this shape.
+fn inradius(kind: ObjectKind) -> f32 {
+    match kind {
+        ObjectKind::Sphere { r } | ObjectKind::Capsule { r, .. } => r,
+        ObjectKind::Box { h } => h[0].min(h[1]).min(h[2]),
+        ObjectKind::Cylinder { r, hl } => r.min(hl),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::world::Environment;
+    use rand::SeedableRng;
+
+    /// No part of the built-in Fetch fits in another link's pockets; listed as if every part
+    /// could, the parts flag states the spheres clear, where one lies within the other link's
+    /// bound.
+    #[test]
+    fn parts_that_could_hide_flag_states_where_they_lie_within_the_other_link() {
+        let robot = Robot::builtin("fetch").unwrap();
+        let mut none = BatchChecker::new(&robot, &Environment::new());
+        assert!(none.validate(true));
+        assert_eq!(none.hiding.parts.as_deref(), Some(&[][..]));
+        let mut every = none.clone();
+        let mut parts = Vec::new();
+        for (k, &SelfPair { a, b, .. }) in every.pairs.iter().enumerate() {
+            for (x, y) in [(a, b), (b, a)] {
+                parts.extend(every.hiding.part_points[x].clone().map(|i| (k, x, y, i)));
+            }
+        }
+        every.hiding.parts = Some(parts);
+        let mut rng = rand::rngs::StdRng::seed_from_u64(4);
+        let mut q = vec![0.0; robot.dof()];
+        let mut flagged = 0;
+        for _ in 0..3000 {
+            robot.sample_uniform(&mut rng, &mut q);
+            flagged += usize::from(every.state_may_collide(&q) && !none.state_may_collide(&q));
+        }
+        assert!(flagged > 0);
+    }
+
+    #[test]
+    fn objects_hold_balls_of_their_inradius() {
+        assert_eq!(
+            inradius(ObjectKind::Box {
+                h: [0.3, 0.02, 0.5]
+            }),
+            0.02
+        );
+        assert_eq!(inradius(ObjectKind::Cylinder { r: 0.04, hl: 0.01 }), 0.01);
+        assert_eq!(inradius(ObjectKind::Capsule { r: 0.03, hl: 0.2 }), 0.03);
+    }
+}
