@@ -434,18 +434,11 @@ mod tests {
         let mut best = (0, [0.0; 3], f64::NEG_INFINITY);
         for (l, link) in robot.links().iter().enumerate() {
             let parts: Vec<Part> = link.collision.iter().map(Part::new).collect();
-            let spheres: Vec<_> = robot.spheres().link_spheres(l).collect();
-            let corners = parts.iter().flat_map(|p| p.triangles().iter().flatten());
-            let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-            for c in corners {
-                for a in 0..3 {
-                    lo[a] = lo[a].min(c[a]);
-                    hi[a] = hi[a].max(c[a]);
-                }
-            }
             if parts.is_empty() {
                 continue;
             }
+            let spheres: Vec<_> = robot.spheres().link_spheres(l).collect();
+            let (lo, hi) = Part::bounds_of(&parts);
             for _ in 0..40_000 {
                 let p: [f64; 3] = std::array::from_fn(|a| rng.random_range(lo[a]..=hi[a]));
                 if parts.iter().all(|part| part.depth(p) <= 0.0) {

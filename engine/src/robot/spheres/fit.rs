@@ -91,6 +91,11 @@ impl Part {
     pub(crate) fn triangles(&self) -> &[[[f64; 3]; 3]] {
         &self.triangles
     }
+
+    /// The box (lower and upper corners, link frame) around `parts`.
+    pub(crate) fn bounds_of(parts: &[Part]) -> ([f64; 3], [f64; 3]) {
+        bounds(parts.iter().flat_map(|p| p.triangles.iter().flatten()))
+    }
 }
 
 /// Largest depth of `p` in any part (positive: inside the union).
@@ -398,7 +403,8 @@ fn dedup_spheres(spheres: &mut Vec<Sphere>, tolerance: f64) {
     });
 }
 
-fn bounds<'a>(points: impl Iterator<Item = &'a [f64; 3]>) -> ([f64; 3], [f64; 3]) {
+/// The box (lower and upper corners) around `points`.
+pub(crate) fn bounds<'a>(points: impl Iterator<Item = &'a [f64; 3]>) -> ([f64; 3], [f64; 3]) {
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
     for p in points {

@@ -26,14 +26,7 @@ pub(crate) fn has_room(parts: &[Part], spheres: &[Sphere], t: f64) -> bool {
     if t.is_nan() || t <= 0.0 {
         return true;
     }
-    let corners = parts.iter().flat_map(|p| p.triangles().iter().flatten());
-    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-    for c in corners {
-        for a in 0..3 {
-            lo[a] = lo[a].min(c[a]);
-            hi[a] = hi[a].max(c[a]);
-        }
-    }
+    let (lo, hi) = Part::bounds_of(parts);
     let half = (0..3).map(|a| (hi[a] - lo[a]) / 2.0).fold(0.0, f64::max);
     let mut cells = vec![(std::array::from_fn(|a| (lo[a] + hi[a]) / 2.0), half)];
     // The sphere that cleared the last cell is tried first: neighbouring cells mostly share it.
