@@ -3,7 +3,7 @@
 //! surface, so a state they clear is free in the exact geometry unless an obstacle (an object,
 //! a map's voxel, a part of another link) lies wholly inside a link, where the spheres need
 //! not reach. Such an obstacle holds a ball of its inradius clear of the link's spheres, which
-//! only a link with room for that ball can give ([`Pockets`]); and every point of it is
+//! only a link with room for that ball can give ([`LinkPockets`]); and every point of it is
 //! inside the link's bound ball and box. So validation also flags a batch where, in some lane,
 //! the centre of an object, an occupied voxel, or a point of a part of the other link of a
 //! self pair whose bounds meet, lies within the bound of a link with room for it. (A link
@@ -11,9 +11,9 @@
 
 use super::lanes::F8;
 use super::{overlap, unclear_lanes, BatchChecker, ObjectKind, SelfPair, MARGIN};
-use crate::robot::spheres::fit::Part;
-use crate::robot::spheres::pockets::Pockets;
-use crate::robot::Robot;
+use crate::collision::Shape;
+use crate::robot::spheres::pockets::LinkPockets;
+use crate::robot::{Geometry, LinkShape, Robot};
 use std::ops::Range;
 use std::sync::Arc;
 
@@ -33,14 +33,15 @@ pub(super) struct Hiding {
     /// False when a link has exact geometry but no spheres: the lanes do not cover the robot,
     /// and validation is left to the exact checker.
     pub(super) covers: bool,
-    pockets: Arc<Pockets>,
+    /// Per link: its pockets (the sphere model's).
+    pockets: Vec<Arc<LinkPockets>>,
     /// Self pairs (their index) with a part (its point) of link `x` that could hide in link
     /// `y`: `(pair, x, y, point)`; worked out on the first validation.
     parts: Option<Vec<(usize, usize, usize, usize)>>,
     /// In the validation under way: the moving links and the objects that could hide in
     /// them, and per link whether a voxel of the map could.
     objects: Vec<(usize, usize)>,
-    voxels: Option<Arc<[bool]>>,
+    voxels: Option<Vec<bool>>,
 }
 
 impl Hiding {
@@ -61,30 +62,28 @@ impl Hiding {
                 // depth of that centre: a ball that deep is inside the part (none if outside).
                 let local = part.convex.support(&nalgebra::Vector3::x());
                 let c = part.origin * nalgebra::Point3::from(local);
-                let inradius = Part::new(shape).depth(part.center).max(0.0);
-                points.push((place(l, [c.x, c.y, c.z]), inradius));
+                points.push((place(l, [c.x, c.y, c.z]), part_inradius(shape)));
             }
             part_points.push(start..points.len());
         }
         let covers = (0..links.len()).all(|l| exact.link_parts(l).is_empty() || bound[l].is_some());
-        let spheres = robot.spheres();
         Hiding {
             part_points,
             points,
             covers,
-            pockets: Arc::new(Pockets::new(links.iter().map(|l| &l.collision[..]), |l| {
-                spheres.link_spheres(l).collect()
-            })),
+            pockets: robot.spheres().pockets.clone(),
             parts: None,
             objects: Vec::new(),
             voxels: None,
         }
     }
 
-    /// Per link, whether an obstacle with inradius `rho` could hide in it.
-    fn room(&self, rho: f64) -> Option<Arc<[bool]>> {
-        let t = LADDER.iter().rev().find(|&&t| t <= rho)?;
-        Some(self.pockets.room_for(*t))
+    /// Whether an obstacle with inradius `rho` could hide in link `l`.
+    fn room(&self, rho: f64, l: usize) -> bool {
+        match LADDER.iter().rev().find(|&&t| t <= rho) {
+            Some(&t) => self.pockets[l].has_room_for(t),
+            None => true,
+        }
     }
 }
 
@@ -92,7 +91,7 @@ impl BatchChecker {
     /// Validation mode on or off: a batch is also flagged where an obstacle could hide
     /// inside a link ([`BatchChecker::may_hide`]). Returns false, and stays off, when the
     /// lanes cannot stand for the exact geometry (a link with exact parts but no spheres).
-    /// The links' room is worked out on the first validation that needs it ([`Pockets`]).
+    /// A link's room for a ball is worked out the first time it is asked ([`LinkPockets`]).
     pub(crate) fn validate(&mut self, on: bool) -> bool {
         self.validating = on && self.hiding.covers;
         if !self.validating {
@@ -104,7 +103,7 @@ impl BatchChecker {
             for (k, &SelfPair { a, b, .. }) in self.pairs.iter().enumerate() {
                 for (x, y) in [(a, b), (b, a)] {
                     for i in h.part_points[x].clone() {
-                        if h.room(h.points[i].1).is_none_or(|room| room[y]) {
+                        if h.room(h.points[i].1, y) {
                             parts.push((k, x, y, i));
                         }
                     }
@@ -115,18 +114,23 @@ impl BatchChecker {
         let mut objects = std::mem::take(&mut self.hiding.objects);
         objects.clear();
         for (o, object) in self.objects.iter().enumerate() {
-            let room = self.hiding.room(f64::from(inradius(object.kind)));
+            let rho = f64::from(inradius(object.kind));
             for &l in &self.moving {
-                if room.as_ref().is_none_or(|room| room[l]) {
+                if self.hiding.room(rho, l) {
                     objects.push((l, o));
                 }
             }
         }
         self.hiding.objects = objects;
-        self.hiding.voxels = self
-            .map
-            .as_ref()
-            .map(|m| self.hiding.pockets.room_for(m.resolution() / 2.0));
+        // A voxel holds a ball of half its edge, asked of each link as it is.
+        self.hiding.voxels = self.map.as_ref().map(|m| {
+            let t = m.resolution() / 2.0;
+            self.hiding
+                .pockets
+                .iter()
+                .map(|p| p.has_room_for(t))
+                .collect()
+        });
         true
     }
 
@@ -187,6 +191,29 @@ impl BatchChecker {
     fn within_bound(&self, l: usize, p: [F8; 3]) -> bool {
         let (_, r) = self.bound[l].unwrap_or_default();
         overlap(p, MARGIN, self.bounds[l], r) && self.box_reached(l, p, MARGIN)
+    }
+}
+
+/// The radius of a ball inside a part of a link (0 for a hull whose vertices' centroid is
+/// on its boundary).
+fn part_inradius(shape: &LinkShape) -> f64 {
+    match &shape.geometry {
+        Geometry::Primitive(s) => match *s {
+            Shape::Sphere { radius } | Shape::Capsule { radius, .. } => radius,
+            Shape::Box { half_extents: h } => h[0].min(h[1]).min(h[2]),
+            Shape::Cylinder {
+                radius,
+                half_length,
+            } => radius.min(half_length),
+        },
+        Geometry::Convex(hull) => {
+            let n = hull.points.len().max(1) as f64;
+            let c = hull
+                .points
+                .iter()
+                .fold([0.0; 3], |c, p| std::array::from_fn(|a| c[a] + p[a] / n));
+            hull.depth(c).max(0.0)
+        }
     }
 }
 

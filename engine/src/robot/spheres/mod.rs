@@ -20,8 +20,10 @@ use super::{Link, LinkShape};
 use cache::{Source, SphereCache};
 use fit::{Part, Sphere};
 use nalgebra::Vector3;
+use pockets::LinkPockets;
 use rand::{Rng, SeedableRng};
 use serde::Deserialize;
+use std::sync::Arc;
 
 /// Parameters of sphere fitting (the `[spheres]` table of the robot file).
 #[derive(Debug, Clone, PartialEq, Deserialize)]
@@ -123,6 +125,9 @@ pub struct SphereModel {
     pub clusters: Vec<Cluster>,
     /// Per link: the range of its clusters.
     pub link_clusters: Vec<std::ops::Range<usize>>,
+    /// Per link: where an obstacle could hide inside it clear of its spheres (worked out
+    /// when asked; shared by the robot's copies).
+    pub pockets: Vec<Arc<LinkPockets>>,
     /// How the model was built.
     pub build: BuildInfo,
 }
@@ -202,15 +207,20 @@ impl SphereModel {
             &self.center[range.clone()],
             &self.radius[range.clone()],
         ));
+        let spheres: Vec<Sphere> = self.link_spheres_in(range.clone()).collect();
+        self.pockets
+            .push(Arc::new(LinkPockets::new(&link.collision, &spheres)));
         self.ranges.push(range);
         self.link_clusters.push(cluster_start..self.clusters.len());
     }
 
+    fn link_spheres_in(&self, range: std::ops::Range<usize>) -> impl Iterator<Item = Sphere> + '_ {
+        range.map(move |s| (self.center[s], self.radius[s]))
+    }
+
     /// The spheres of link `link`.
     pub fn link_spheres(&self, link: usize) -> impl Iterator<Item = Sphere> + '_ {
-        self.ranges[link]
-            .clone()
-            .map(move |s| (self.center[s], self.radius[s]))
+        self.link_spheres_in(self.ranges[link].clone())
     }
 }
 

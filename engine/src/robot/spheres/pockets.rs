@@ -5,12 +5,11 @@
 //! point inside the link's geometry may be `t` or farther from every sphere (a subdivision of
 //! the link's box whose cells are cleared by the distance bounds at their centres); when none
 //! is, no obstacle holding a ball of radius `t` (a map's voxel of edge `2t`) can hide there.
+//! [`LinkPockets`] keeps each link's answers with its sphere model.
 
 use super::fit::{Part, Sphere};
 use crate::robot::LinkShape;
-use rustc_hash::FxHashMap;
-use sha2::{Digest, Sha256};
-use std::sync::{Arc, Mutex, OnceLock};
+use std::sync::Mutex;
 
 /// Cells are split until their half diagonal is this fraction of the radius asked about; a
 /// cell still undecided then counts as room.
@@ -62,80 +61,49 @@ pub(crate) fn has_room(parts: &[Part], spheres: &[Sphere], t: f64) -> bool {
     false
 }
 
-/// [`has_room`] of one link's geometry and spheres for one radius, kept per process by
-/// content (a robot copy holding an object asks again only of the object's link).
-fn link_has_room(shapes: &[LinkShape], spheres: &[Sphere], t: f64) -> bool {
-    static MEMO: OnceLock<Mutex<FxHashMap<[u8; 32], bool>>> = OnceLock::new();
-    let mut h = Sha256::new();
-    super::cache::hash_shapes(&mut h, shapes);
-    for (c, r) in spheres {
-        for v in [c[0], c[1], c[2], *r] {
-            h.update(v.to_le_bytes());
-        }
-    }
-    h.update(t.to_le_bytes());
-    let key: [u8; 32] = h.finalize().into();
-    let memo = MEMO.get_or_init(Default::default);
-    if let Some(&room) = memo.lock().unwrap_or_else(|e| e.into_inner()).get(&key) {
-        return room;
-    }
-    let parts: Vec<Part> = shapes.iter().map(Part::new).collect();
-    let room = has_room(&parts, spheres, t);
-    memo.lock()
-        .unwrap_or_else(|e| e.into_inner())
-        .insert(key, room);
-    room
+/// One link's geometry and spheres, and the radii [`has_room`] was asked about with its
+/// answers: shared by a robot's copies (a copy holding an object asks again only of the
+/// object's link).
+pub struct LinkPockets {
+    shapes: Vec<LinkShape>,
+    spheres: Vec<Sphere>,
+    asked: Mutex<Vec<(u64, bool)>>,
 }
 
-/// Per link, whether an obstacle holding a ball of a given radius may hide inside it
-/// ([`has_room`]), worked out on first asking for each radius and kept.
-pub struct Pockets {
-    /// Per link: its geometry and its spheres (link frame).
-    links: Vec<(Vec<LinkShape>, Vec<Sphere>)>,
-    asked: Mutex<Vec<(u64, Arc<[bool]>)>>,
-}
-
-impl Pockets {
-    /// The pockets of links `links` with spheres `spheres(l)` per link.
-    pub fn new<'a>(
-        links: impl Iterator<Item = &'a [LinkShape]>,
-        spheres: impl Fn(usize) -> Vec<Sphere>,
-    ) -> Self {
-        Pockets {
-            links: links
-                .enumerate()
-                .map(|(l, shapes)| (shapes.to_vec(), spheres(l)))
-                .collect(),
+impl LinkPockets {
+    /// The pockets of a link with geometry `shapes` and spheres `spheres` (link frame).
+    pub fn new(shapes: &[LinkShape], spheres: &[Sphere]) -> Self {
+        LinkPockets {
+            shapes: shapes.to_vec(),
+            spheres: spheres.to_vec(),
             asked: Mutex::new(Vec::new()),
         }
     }
 
-    /// Per link: true when an obstacle holding a ball of radius `t` may lie inside it clear of
-    /// its spheres (always false for a link without geometry).
-    pub fn room_for(&self, t: f64) -> Arc<[bool]> {
+    /// True when an obstacle holding a ball of radius `t` may lie inside the link clear of
+    /// its spheres ([`has_room`], worked out on first asking for each radius; false for a link
+    /// without geometry).
+    pub fn has_room_for(&self, t: f64) -> bool {
         let key = t.to_bits();
-        if let Some((_, room)) = self.lock().iter().find(|(k, _)| *k == key) {
-            return room.clone();
+        if let Some(&(_, room)) = self.lock().iter().find(|(k, _)| *k == key) {
+            return room;
         }
-        let room: Arc<[bool]> = self
-            .links
-            .iter()
-            .map(|(shapes, spheres)| link_has_room(shapes, spheres, t))
-            .collect();
-        self.lock().push((key, room.clone()));
+        let parts: Vec<Part> = self.shapes.iter().map(Part::new).collect();
+        let room = has_room(&parts, &self.spheres, t);
+        self.lock().push((key, room));
         room
     }
 
-    fn lock(&self) -> std::sync::MutexGuard<'_, Vec<(u64, Arc<[bool]>)>> {
+    fn lock(&self) -> std::sync::MutexGuard<'_, Vec<(u64, bool)>> {
         // A panic elsewhere while it was held leaves a list that is still whole.
         self.asked.lock().unwrap_or_else(|e| e.into_inner())
     }
 }
 
-impl std::fmt::Debug for Pockets {
+impl std::fmt::Debug for LinkPockets {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Pockets")
-            .field("links", &self.links.len())
+        f.debug_struct("LinkPockets")
+            .field("spheres", &self.spheres.len())
             .finish()
     }
 }
@@ -182,17 +150,16 @@ mod tests {
     fn the_built_in_robots_leave_no_room_for_a_centimetre_voxel() {
         for name in ["fetch", "panda"] {
             let robot = Robot::builtin(name).unwrap();
-            let pockets = Pockets::new(robot.links().iter().map(|l| &l.collision[..]), |l| {
-                robot.spheres().link_spheres(l).collect()
-            });
-            let room = pockets.room_for(0.005);
-            assert!(room.iter().all(|r| !r), "{name}: {room:?}");
-            assert!(Arc::ptr_eq(&room, &pockets.room_for(0.005)));
+            let pockets = &robot.spheres().pockets;
+            assert_eq!(pockets.len(), robot.links().len());
+            assert!(pockets.iter().all(|p| !p.has_room_for(0.005)), "{name}");
             if name == "fetch" {
                 // The forearm's pocket (~1.4 mm deep, by sampling) is found for a small grain.
                 let forearm = robot.link_index("forearm_roll_link").unwrap();
-                let room = pockets.room_for(0.0005);
-                assert!(room[forearm], "{room:?}");
+                assert!(pockets[forearm].has_room_for(0.0005));
+                assert_eq!(pockets[forearm].lock().len(), 2);
+                assert!(pockets[forearm].has_room_for(0.0005));
+                assert_eq!(pockets[forearm].lock().len(), 2, "asked again");
             }
         }
     }
