@@ -232,11 +232,15 @@ mod tests {
     use crate::world::Environment;
     use rand::SeedableRng;
 
-    /// No part of the built-in Fetch fits in another link's pockets; listed as if every part
-    /// could, the parts flag states the spheres clear, where one lies within the other link's
-    /// bound.
+    /// No part of the built-in Fetch or Panda fits in another link's pockets; listed as if
+    /// every part could, the Fetch's parts flag states the spheres clear, where one lies
+    /// within the other link's bound.
     #[test]
     fn parts_that_could_hide_flag_states_where_they_lie_within_the_other_link() {
+        let panda = Robot::builtin("panda").unwrap();
+        let mut sut = BatchChecker::new(&panda, &Environment::new());
+        assert!(sut.validate(true));
+        assert_eq!(sut.hiding.parts.as_deref(), Some(&[][..]));
         let robot = Robot::builtin("fetch").unwrap();
         let mut none = BatchChecker::new(&robot, &Environment::new());
         assert!(none.validate(true));
