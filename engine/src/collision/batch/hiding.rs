@@ -58,8 +58,8 @@ impl Hiding {
         for (l, link) in links.iter().enumerate() {
             let start = points.len();
             for (part, shape) in exact.link_parts(l).iter().zip(&link.collision) {
-                // Its support point along x: on the part, wherever its box's centre lies; the
-                // depth of that centre: a ball that deep is inside the part (none if outside).
+                // Its support point along x (on the part, wherever its box's centre lies), and
+                // the radius of a ball inside it.
                 let local = part.convex.support(&nalgebra::Vector3::x());
                 let c = part.origin * nalgebra::Point3::from(local);
                 points.push((place(l, [c.x, c.y, c.z]), part_inradius(shape)));
