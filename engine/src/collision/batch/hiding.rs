@@ -122,14 +122,15 @@ impl BatchChecker {
             }
         }
         self.hiding.objects = objects;
-        // A voxel holds a ball of half its edge, asked of each link as it is.
+        // A voxel holds a ball of half its edge, asked of each moving link as it is (the
+        // links that never move are checked against the map on the exact geometry).
         self.hiding.voxels = self.map.as_ref().map(|m| {
             let t = m.resolution() / 2.0;
-            self.hiding
-                .pockets
-                .iter()
-                .map(|p| p.has_room_for(t))
-                .collect()
+            let mut room = vec![false; self.hiding.pockets.len()];
+            for &l in &self.moving {
+                room[l] = self.hiding.pockets[l].has_room_for(t);
+            }
+            room
         });
         true
     }

@@ -67,6 +67,8 @@ pub(crate) fn has_room(parts: &[Part], spheres: &[Sphere], t: f64) -> bool {
 pub struct LinkPockets {
     shapes: Vec<LinkShape>,
     spheres: Vec<Sphere>,
+    /// The link is balls alone, its own sphere model: no room anywhere.
+    balls: bool,
     asked: Mutex<Vec<(u64, bool)>>,
 }
 
@@ -76,6 +78,7 @@ impl LinkPockets {
         LinkPockets {
             shapes: shapes.to_vec(),
             spheres: spheres.to_vec(),
+            balls: super::fit::balls(shapes).is_some(),
             asked: Mutex::new(Vec::new()),
         }
     }
@@ -84,6 +87,9 @@ impl LinkPockets {
     /// its spheres ([`has_room`], worked out on first asking for each radius; false for a link
     /// without geometry).
     pub fn has_room_for(&self, t: f64) -> bool {
+        if self.balls {
+            return false;
+        }
         let key = t.to_bits();
         if let Some(&(_, room)) = self.lock().iter().find(|(k, _)| *k == key) {
             return room;
