@@ -658,9 +658,7 @@ impl BatchChecker {
             batch[filled] = k;
             filled += 1;
             if filled == LANES {
-                self.skip_recent = !first;
-                let may_collide = self.states_may_collide(n, &batch);
-                self.skip_recent = false;
+                let may_collide = self.states_may_collide(n, &batch, !first);
                 if may_collide && !self.decided_free(n, &batch, &mut decide) {
                     return false;
                 }
@@ -672,9 +670,7 @@ impl BatchChecker {
             for i in filled..LANES {
                 batch[i] = batch[filled - 1];
             }
-            self.skip_recent = !first;
-            let may_collide = self.states_may_collide(n, &batch);
-            self.skip_recent = false;
+            let may_collide = self.states_may_collide(n, &batch, !first);
             // Only the distinct states count (the filler repeats the last).
             self.states -= (LANES - filled) as u64;
             if may_collide && !self.decided_free(n, &batch[..filled], &mut decide) {
@@ -702,10 +698,14 @@ impl BatchChecker {
     }
 
     /// True when any of the states `start + (k / n) · delta` for the eight `ks` may touch
-    /// something.
-    fn states_may_collide(&mut self, n: usize, ks: &[usize; LANES]) -> bool {
+    /// something; `after_free` for a batch after a motion's free first batch, which skips the
+    /// remembered contacts (see [`BatchChecker::states_free`]).
+    fn states_may_collide(&mut self, n: usize, ks: &[usize; LANES], after_free: bool) -> bool {
         self.states += LANES as u64;
-        self.lanes_may_collide(Some((ks, n)))
+        self.skip_recent = after_free;
+        let hit = self.lanes_may_collide(Some((ks, n)));
+        self.skip_recent = false;
+        hit
     }
 
     /// True when any of the eight configurations in `self.lanes` (first written from the

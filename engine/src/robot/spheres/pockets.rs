@@ -161,7 +161,7 @@ mod tests {
             assert_eq!(pockets.len(), robot.links().len());
             assert!(pockets.iter().all(|p| !p.has_room_for(0.004)), "{name}");
             if name == "fetch" {
-                // The forearm's pocket (~1.4 mm deep, by sampling) is found for a small grain.
+                // The forearm's pocket is found for a small grain.
                 let forearm = robot.link_index("forearm_roll_link").unwrap();
                 assert!(pockets[forearm].has_room_for(0.0005));
                 assert_eq!(pockets[forearm].lock().len(), 2);
