@@ -308,7 +308,7 @@ pub fn plan(
         .validate(&request.start)
         .map_err(PlanError::InvalidStart)?;
     let t = Instant::now();
-    if let Some(c) = checker.exact().contact(&request.start) {
+    if let Some(c) = checker.state_contact(&request.start) {
         return Err(PlanError::StartInCollision(c));
     }
     if !checker.spheres().is_valid(&request.start) {
@@ -322,7 +322,7 @@ pub fn plan(
             let mut first_contact = None;
             for g in goals {
                 robot.validate(g).map_err(PlanError::InvalidGoal)?;
-                match checker.exact().contact(g) {
+                match checker.state_contact(g) {
                     None => {
                         if !checker.spheres().is_valid(g) {
                             checker.add_anchor(g);

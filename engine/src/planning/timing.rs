@@ -26,7 +26,7 @@ pub(super) fn timed(
             let touches = (0..=steps).any(|k| {
                 let s = s0 + len * k as f64 / steps as f64;
                 blended.eval(s, s0 + len / 2.0, &mut q, &mut dq, &mut ddq);
-                checker.exact().contact(&q).is_some()
+                checker.state_contact(&q).is_some()
             });
             if touches {
                 touching.push(corner);

@@ -222,6 +222,26 @@ impl<'a> Validity<'a> {
         }
     }
 
+    /// The first contact of `q` in the exact geometry, as [`ExactChecker::contact`] names it,
+    /// or `None` when `q` is free: the check of a start or goal. As in
+    /// [`Validity::path_contact`], the state goes through the sphere lanes in validation mode
+    /// first, and only when they flag it through the exact checker.
+    pub fn state_contact(&mut self, q: &[f64]) -> Option<Contact> {
+        if let Some(c) = self.exact.static_contact() {
+            return Some(c.clone());
+        }
+        if let Some(batch) = self.batch.as_mut() {
+            if batch.validate(true) {
+                let flagged = batch.state_may_collide(q);
+                batch.validate(false);
+                if !flagged {
+                    return None;
+                }
+            }
+        }
+        self.exact.contact(q)
+    }
+
     /// The first contact along `path` (waypoints, and the states of each edge at the
     /// resolution) in the exact geometry, as [`ExactChecker::motion_contact`] walks it, or
     /// `None` when every state is free: the validation of a returned path.
@@ -318,7 +338,8 @@ mod tests {
 
     /// The validation of a path answers as the exact checker walking it does, the same
     /// contact named, on Fetch and the Panda among boxes small enough to fit inside a link,
-    /// large ones, and a map's scattered voxels.
+    /// large ones, and a map's scattered voxels; and the check of a start or goal as the exact
+    /// checker does, state by state.
     #[test]
     fn a_path_is_validated_as_the_exact_checker_walks_it() {
         let resolution = 1.0 / 32.0;
@@ -363,6 +384,9 @@ mod tests {
                     }
                     let want = exact_path_contact(&mut exact, &path, resolution);
                     assert_eq!(sut.path_contact(&path), want, "{name}: {path:?}");
+                    for q in &path {
+                        assert_eq!(sut.state_contact(q), exact.contact(q), "{name}: {q:?}");
+                    }
                     free += usize::from(want.is_none());
                     hit += usize::from(want.is_some());
                 }
@@ -407,9 +431,9 @@ mod tests {
         assert_hidden_is_found(&robot, &voxel, link, &q);
     }
 
-    /// The spheres clear `q` in `env`, the exact geometry does not, and the validation of
-    /// paths to and from `q` turning the last joint (which leaves `link` in place) finds the
-    /// exact checker's contact.
+    /// The spheres clear `q` in `env`, the exact geometry does not, and the check of `q` as a
+    /// start or goal, and the validation of paths to and from `q` turning the last joint
+    /// (which leaves `link` in place), find the exact checker's contact.
     fn assert_hidden_is_found(robot: &Robot, env: &Environment, link: usize, q: &[f64]) {
         assert!(
             !BatchChecker::new(robot, env).state_may_collide(q),
@@ -420,6 +444,9 @@ mod tests {
         *other.last_mut().unwrap() += 0.3;
         let moved = robot.link_poses(&other).unwrap()[link];
         assert_eq!(moved, robot.link_poses(q).unwrap()[link], "the link moves");
+        let want = sut.exact().contact(q);
+        assert!(want.is_some());
+        assert_eq!(sut.state_contact(q), want);
         for path in [vec![q.to_vec(), other.clone()], vec![other, q.to_vec()]] {
             let want = exact_path_contact(sut.exact(), &path, 1.0 / 32.0);
             assert!(want.is_some());
