@@ -16,10 +16,12 @@
 //! reported apart) and ends with `RESULT plan set=<folder> n=<problems> solved=<count>
 //! median_ms=<f> mean_ms=<f> p95_ms=<f> start_refused=<k> goal_refused=<k>
 //! simplify_ms=<median> validate_ms=<median> total_median_ms=<median> median_iterations=
-//! median_nodes=` and the time split; a failure counts as the time limit in the mean, as in
+//! median_nodes= raw_length_median= length_median=` (configuration-space path length, the
+//! search's and the returned path's) and the time split; a failure counts as the time limit in the mean, as in
 //! the paper. `total_median_ms` is over the solved problems: planning, simplification and
 //! validation, what a caller waits for. `--per-problem` also prints, as each problem ends,
-//! `PROBLEM set= index= solved=1 ms= total_ms= search_ms= iterations= nodes= exact_fallbacks=` (or
+//! `PROBLEM set= index= solved=1 ms= total_ms= search_ms= iterations= nodes= exact_fallbacks=
+//! raw_length= length= waypoints=` (or
 //! `solved=0 outcome=start_in_collision|goal_in_collision|timeout|failed`).
 
 use ember_engine::planning::PlanError;
@@ -213,6 +215,9 @@ struct Tally {
     split: Split,
     iterations: Vec<f64>,
     nodes: Vec<f64>,
+    /// Per solved problem: the search's path length, and the returned path's.
+    raw_length: Vec<f64>,
+    length: Vec<f64>,
 }
 
 impl Tally {
@@ -238,13 +243,19 @@ impl Tally {
                 self.split.add(&res.stats);
                 self.iterations.push(res.stats.iterations as f64);
                 self.nodes.push(res.stats.tree_nodes as f64);
+                self.raw_length.push(res.stats.length_before);
+                self.length.push(res.stats.length_after);
                 format!(
-                    "solved=1 ms={ms:.3} total_ms={:.3} search_ms={:.3} iterations={} nodes={} exact_fallbacks={}",
+                    "solved=1 ms={ms:.3} total_ms={:.3} search_ms={:.3} iterations={} nodes={} exact_fallbacks={} \
+                     raw_length={:.4} length={:.4} waypoints={}",
                     total * 1e3,
                     res.stats.search_s * 1e3,
                     res.stats.iterations,
                     res.stats.tree_nodes,
-                    res.stats.exact_fallbacks
+                    res.stats.exact_fallbacks,
+                    res.stats.length_before,
+                    res.stats.length_after,
+                    res.path.len()
                 )
             }
             Err(e) => {
@@ -275,6 +286,8 @@ impl Tally {
         let (total, _, _) = summary(&mut self.total.clone());
         let (median_iterations, _, _) = summary(&mut self.iterations.clone());
         let (median_nodes, _, _) = summary(&mut self.nodes.clone());
+        let (raw_length, _, _) = summary(&mut self.raw_length.clone());
+        let (length, _, _) = summary(&mut self.length.clone());
         let (solved, start_refused, goal_refused) =
             (self.solved, self.start_refused, self.goal_refused);
         println!(
@@ -285,7 +298,8 @@ impl Tally {
             "RESULT plan set={set} n={n} solved={solved} median_ms={median:.3} mean_ms={mean:.3} \
              p95_ms={p95:.3} start_refused={start_refused} goal_refused={goal_refused} \
              simplify_ms={simp:.3} validate_ms={val:.3} total_median_ms={total:.3} \
-             median_iterations={median_iterations:.0} median_nodes={median_nodes:.0} {}{extra}",
+             median_iterations={median_iterations:.0} median_nodes={median_nodes:.0} \
+             raw_length_median={raw_length:.3} length_median={length:.3} {}{extra}",
             self.split.keys()
         )
     }
