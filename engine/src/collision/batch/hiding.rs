@@ -87,6 +87,22 @@ impl Hiding {
     }
 }
 
+/// Works out each link's room for the balls validation asks about (the ladder's radii, and
+/// half of each voxel edge in `voxel_edges`), so that no plan pays for it: what a daemon does
+/// before it serves. Left alone, each is worked out the first time a validation asks.
+pub fn prepare_validation(robot: &Robot, voxel_edges: &[f64]) {
+    let radii: Vec<f64> = LADDER
+        .iter()
+        .copied()
+        .chain(voxel_edges.iter().map(|e| e / 2.0))
+        .collect();
+    for pockets in &robot.spheres().pockets {
+        for &t in &radii {
+            pockets.has_room_for(t);
+        }
+    }
+}
+
 impl BatchChecker {
     /// Validation mode on or off: a batch is also flagged where an obstacle could hide
     /// inside a link ([`BatchChecker::may_hide`]). Returns false, and stays off, when the
@@ -232,6 +248,30 @@ mod tests {
     use super::*;
     use crate::world::Environment;
     use rand::SeedableRng;
+
+    /// Prepared, every link's room is known for every radius a validation of the built-in
+    /// Fetch against a map of 1 cm voxels asks about.
+    #[test]
+    fn prepared_validation_asks_no_more() {
+        let robot = Robot::builtin("fetch").unwrap();
+        prepare_validation(&robot, &[0.01]);
+        let asked = |r: &Robot| -> Vec<usize> {
+            r.spheres().pockets.iter().map(|p| p.answered()).collect()
+        };
+        let before = asked(&robot);
+        assert!(before.iter().any(|&n| n == LADDER.len() + 1), "{before:?}");
+        use crate::world::map::{MapParams, OccupancyMap};
+        let mut map = OccupancyMap::new(MapParams {
+            resolution: 0.01,
+            ..MapParams::default()
+        });
+        map.set_voxel(map.key_of([0.6, 0.0, 0.7]), true);
+        let mut env = Environment::new();
+        env.set_map(Some(Arc::new(map)));
+        let mut sut = BatchChecker::new(&robot, &env);
+        assert!(sut.validate(true));
+        assert_eq!(asked(&robot), before);
+    }
 
     /// No part of the built-in Fetch or Panda fits in another link's pockets; listed as if
     /// every part could, the Fetch's parts flag states the spheres clear, where one lies

@@ -31,6 +31,7 @@
 //! on both, see [`lanes`]).
 
 mod hiding;
+pub use hiding::prepare_validation;
 pub mod lanes;
 
 use crate::collision::checker::{bisection_order, steps_over};

@@ -100,6 +100,12 @@ impl LinkPockets {
         room
     }
 
+    /// Radii asked about so far.
+    #[cfg(test)]
+    pub(crate) fn answered(&self) -> usize {
+        self.lock().len()
+    }
+
     fn lock(&self) -> std::sync::MutexGuard<'_, Vec<(u64, bool)>> {
         // A panic elsewhere while it was held leaves a list that is still whole.
         self.asked.lock().unwrap_or_else(|e| e.into_inner())
