@@ -135,17 +135,13 @@ pub(crate) fn hash_shapes(h: &mut Sha256, shapes: &[LinkShape]) {
     }
 }
 
-fn hex(bytes: &[u8]) -> String {
+pub(crate) fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
 
 fn read(path: &Path) -> Option<Vec<Sphere>> {
-    let bytes = std::fs::read(path).ok()?;
-    if bytes.len() < 16 || &bytes[..8] != MAGIC {
-        return None;
-    }
-    let (body, crc) = bytes.split_at(bytes.len() - 4);
-    if crc32fast::hash(body).to_le_bytes() != crc {
+    let body = read_checked(path)?;
+    if body.len() < 12 || &body[..8] != MAGIC {
         return None;
     }
     let n = u32::from_le_bytes(body[8..12].try_into().ok()?) as usize;
@@ -164,8 +160,6 @@ fn read(path: &Path) -> Option<Vec<Sphere>> {
 }
 
 fn write(path: &Path, spheres: &[Sphere]) -> std::io::Result<()> {
-    let dir = path.parent().expect("cache files live in a folder");
-    std::fs::create_dir_all(dir)?;
     let mut bytes = MAGIC.to_vec();
     bytes.extend((spheres.len() as u32).to_le_bytes());
     for (c, r) in spheres {
@@ -173,6 +167,24 @@ fn write(path: &Path, spheres: &[Sphere]) -> std::io::Result<()> {
             bytes.extend(v.to_le_bytes());
         }
     }
+    write_checked(path, bytes)
+}
+
+/// The body of a cache file written by [`write_checked`] when its CRC-32 holds.
+pub(crate) fn read_checked(path: &Path) -> Option<Vec<u8>> {
+    let mut bytes = std::fs::read(path).ok()?;
+    if bytes.len() < 4 {
+        return None;
+    }
+    let crc = bytes.split_off(bytes.len() - 4);
+    (crc32fast::hash(&bytes).to_le_bytes()[..] == crc[..]).then_some(bytes)
+}
+
+/// Writes `bytes` and their CRC-32 to `path` atomically (a temporary file renamed), making
+/// its folder.
+pub(crate) fn write_checked(path: &Path, mut bytes: Vec<u8>) -> std::io::Result<()> {
+    let dir = path.parent().expect("cache files live in a folder");
+    std::fs::create_dir_all(dir)?;
     let crc = crc32fast::hash(&bytes);
     bytes.extend(crc.to_le_bytes());
     let tmp = dir.join(format!(

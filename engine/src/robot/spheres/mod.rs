@@ -208,8 +208,11 @@ impl SphereModel {
             &self.radius[range.clone()],
         ));
         let spheres: Vec<Sphere> = self.link_spheres_in(range.clone()).collect();
-        self.pockets
-            .push(Arc::new(LinkPockets::new(&link.collision, &spheres)));
+        self.pockets.push(Arc::new(LinkPockets::new(
+            &link.collision,
+            &spheres,
+            cache.dir(),
+        )));
         self.ranges.push(range);
         self.link_clusters.push(cluster_start..self.clusters.len());
     }

@@ -7,9 +7,16 @@
 //! is, no obstacle holding a ball of radius `t` (a map's voxel of edge `2t`) can hide there.
 //! [`LinkPockets`] keeps each link's answers with its sphere model.
 
+use super::cache::{hash_shapes, hex, read_checked, write_checked};
 use super::fit::{Part, Sphere};
 use crate::robot::LinkShape;
-use std::sync::Mutex;
+use sha2::{Digest, Sha256};
+use std::path::{Path, PathBuf};
+use std::sync::{Mutex, OnceLock};
+
+/// Bumped whenever [`has_room`]'s answer for the same input may change.
+const ROOM_VERSION: &str = "ember-pockets-v1";
+const MAGIC: &[u8; 8] = b"EMBROOM1";
 
 /// Cells are split until their half diagonal is this fraction of the radius asked about; a
 /// cell still undecided then counts as room.
@@ -63,41 +70,77 @@ pub(crate) fn has_room(parts: &[Part], spheres: &[Sphere], t: f64) -> bool {
 
 /// One link's geometry and spheres, and the radii [`has_room`] was asked about with its
 /// answers: shared by a robot's copies (a copy holding an object asks again only of the
-/// object's link).
+/// object's link). With a cache folder the answers are also kept on disk, keyed by a SHA-256
+/// of the geometry, the spheres and the radius (`<dir>/pockets-v1/<key>.bin`), so another
+/// process loading the same robot reads them instead of working them out again.
 pub struct LinkPockets {
     shapes: Vec<LinkShape>,
     spheres: Vec<Sphere>,
     /// The link is balls alone, its own sphere model: no room anywhere.
     balls: bool,
     asked: Mutex<Vec<(u64, bool)>>,
+    /// The disk cache's folder, if any, and the link's content key (hashed on first use).
+    dir: Option<PathBuf>,
+    key: OnceLock<String>,
 }
 
 impl LinkPockets {
-    /// The pockets of a link with geometry `shapes` and spheres `spheres` (link frame).
-    pub fn new(shapes: &[LinkShape], spheres: &[Sphere]) -> Self {
+    /// The pockets of a link with geometry `shapes` and spheres `spheres` (link frame),
+    /// answers kept under `dir` when given.
+    pub fn new(shapes: &[LinkShape], spheres: &[Sphere], dir: Option<PathBuf>) -> Self {
         LinkPockets {
             shapes: shapes.to_vec(),
             spheres: spheres.to_vec(),
             balls: super::fit::balls(shapes).is_some(),
             asked: Mutex::new(Vec::new()),
+            dir,
+            key: OnceLock::new(),
         }
     }
 
     /// True when an obstacle holding a ball of radius `t` may lie inside the link clear of
-    /// its spheres ([`has_room`], worked out on first asking for each radius; false for a link
-    /// without geometry).
+    /// its spheres ([`has_room`], worked out on first asking for each radius, or read from
+    /// the disk cache; false for a link without geometry).
     pub fn has_room_for(&self, t: f64) -> bool {
         if self.balls {
             return false;
         }
-        let key = t.to_bits();
-        if let Some(&(_, room)) = self.lock().iter().find(|(k, _)| *k == key) {
+        let bits = t.to_bits();
+        if let Some(&(_, room)) = self.lock().iter().find(|(k, _)| *k == bits) {
             return room;
         }
-        let parts: Vec<Part> = self.shapes.iter().map(Part::new).collect();
-        let room = has_room(&parts, &self.spheres, t);
-        self.lock().push((key, room));
+        let file = self.dir.as_ref().map(|d| {
+            let key = self.key.get_or_init(|| self.content_key());
+            d.join("pockets-v1").join(format!("{key}-{bits:016x}.bin"))
+        });
+        let room = match file.as_deref().and_then(read_room) {
+            Some(room) => room,
+            None => {
+                let parts: Vec<Part> = self.shapes.iter().map(Part::new).collect();
+                let room = has_room(&parts, &self.spheres, t);
+                if let Some(f) = &file {
+                    let bytes = [&MAGIC[..], &[u8::from(room)]].concat();
+                    if let Err(e) = write_checked(f, bytes) {
+                        tracing::warn!("pocket cache {} not written: {e}", f.display());
+                    }
+                }
+                room
+            }
+        };
+        self.lock().push((bits, room));
         room
+    }
+
+    fn content_key(&self) -> String {
+        let mut h = Sha256::new();
+        h.update(ROOM_VERSION.as_bytes());
+        hash_shapes(&mut h, &self.shapes);
+        for (c, r) in &self.spheres {
+            for v in [c[0], c[1], c[2], *r] {
+                h.update(v.to_le_bytes());
+            }
+        }
+        hex(&h.finalize())
     }
 
     /// Radii asked about so far.
@@ -109,6 +152,14 @@ impl LinkPockets {
     fn lock(&self) -> std::sync::MutexGuard<'_, Vec<(u64, bool)>> {
         // A panic elsewhere while it was held leaves a list that is still whole.
         self.asked.lock().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+/// A cached answer: `None` when the file is missing, corrupt or not one.
+fn read_room(path: &Path) -> Option<bool> {
+    match read_checked(path)?.as_slice() {
+        [magic @ .., answer] if magic == MAGIC && *answer <= 1 => Some(*answer == 1),
+        _ => None,
     }
 }
 
@@ -163,8 +214,14 @@ mod tests {
     fn the_built_in_robots_leave_no_room_for_a_ball_of_4_mm() {
         for name in ["fetch", "panda"] {
             let robot = Robot::builtin(name).unwrap();
-            let pockets = &robot.spheres().pockets;
-            assert_eq!(pockets.len(), robot.links().len());
+            assert_eq!(robot.spheres().pockets.len(), robot.links().len());
+            // Worked out here, not read from a disk cache.
+            let pockets: Vec<LinkPockets> = (0..robot.links().len())
+                .map(|l| {
+                    let spheres: Vec<Sphere> = robot.spheres().link_spheres(l).collect();
+                    LinkPockets::new(&robot.links()[l].collision, &spheres, None)
+                })
+                .collect();
             assert!(pockets.iter().all(|p| !p.has_room_for(0.004)), "{name}");
             if name == "fetch" {
                 // The forearm's pocket is found for a small grain.
@@ -175,5 +232,36 @@ mod tests {
                 assert_eq!(pockets[forearm].lock().len(), 2, "asked again");
             }
         }
+    }
+
+    /// Answers are kept on disk and read back by a new link with the same content (a file
+    /// holding the other answer is believed: it is what was read); a corrupt file is worked
+    /// out again and replaced.
+    #[test]
+    fn answers_round_trip_through_the_disk_cache() {
+        let dir = std::env::temp_dir().join(format!("ember-pocket-cache-{}", std::process::id()));
+        let shapes = [LinkShape {
+            origin: Pose::translation(0.1, 0.0, 0.0),
+            geometry: Geometry::Primitive(Shape::cuboid([0.1; 3])),
+        }];
+        let spheres = [([0.1, 0.0, 0.0], 0.05)];
+        let fresh = || LinkPockets::new(&shapes, &spheres, Some(dir.clone()));
+        assert!(fresh().has_room_for(0.002));
+        let file = std::fs::read_dir(dir.join("pockets-v1"))
+            .unwrap()
+            .next()
+            .unwrap()
+            .unwrap()
+            .path();
+        assert_eq!(read_room(&file), Some(true));
+        write_checked(&file, [&MAGIC[..], &[0]].concat()).unwrap();
+        assert!(!fresh().has_room_for(0.002), "not read from the file");
+        let mut bytes = std::fs::read(&file).unwrap();
+        bytes[3] ^= 0xff;
+        std::fs::write(&file, &bytes).unwrap();
+        assert_eq!(read_room(&file), None);
+        assert!(fresh().has_room_for(0.002));
+        assert_eq!(read_room(&file), Some(true));
+        std::fs::remove_dir_all(&dir).ok();
     }
 }
