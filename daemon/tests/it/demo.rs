@@ -140,12 +140,18 @@ fn the_demo_plans_with_every_method_through_the_daemon_and_keeps_its_session() {
             },
         )
         .unwrap();
+    // A placement whose ends the daemon refused was asked of the first method alone, then
+    // put down and drawn again.
+    let refused: usize = named_result_line(&stdout, "demo_place", "method=uniform ")
+        ["placements_refused"]
+        .parse()
+        .unwrap();
     assert_eq!(
         (requests, no_learn),
-        (12, 8),
-        "(3 picks + 1 place) × 3 methods, 2 not learned"
+        (12 + refused, 8 + refused),
+        "(3 picks + 1 place) × 3 methods, 2 not learned; {refused} refused placements"
     );
-    assert_eq!((attaches, detaches), (1, 1));
+    assert_eq!((attaches, detaches), (1 + refused, 1 + refused));
     assert!(
         clouds >= 3 && joints > 0 && objects >= 10,
         "{clouds} clouds, {joints} joint states, {objects} object updates"
@@ -160,6 +166,6 @@ fn the_demo_plans_with_every_method_through_the_daemon_and_keeps_its_session() {
     // as it was).
     let fresh = crate::daemon::Daemon::start("demo-replay");
     let _client = fresh.client();
-    crate::daemon::replay_check(&recording, &fresh, 12);
+    crate::daemon::replay_check(&recording, &fresh, 12 + refused);
     let _ = std::fs::remove_dir_all(dir);
 }

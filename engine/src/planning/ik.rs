@@ -197,7 +197,10 @@ mod tests {
                     solved += usize::from(!sols.is_empty());
                 }
                 // A random configuration may collide with the robot itself: most do not.
-                assert!(solved >= 14, "{name}, rotation {with_rotation}: {solved} of 20");
+                assert!(
+                    solved >= 14,
+                    "{name}, rotation {with_rotation}: {solved} of 20"
+                );
             }
         }
     }

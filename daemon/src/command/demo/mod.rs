@@ -163,7 +163,10 @@ fn wait_until(
 
 /// Plans `start → goal` with every method (the uniform plan learned from, the others not),
 /// judging each returned path exactly against `truth` for `robot` (with what it holds): one
-/// progress note per method.
+/// progress note per method. With `redraw_refused`, a task whose start or goal the daemon
+/// refuses as in collision (with what its map shows: voxels stand up to a voxel proud of the
+/// surfaces the task was drawn against) is counted nowhere and `None` is returned, for the task
+/// layer to draw another.
 fn plan_all(
     client: &Client,
     robot: &Robot,
@@ -171,9 +174,10 @@ fn plan_all(
     (start, goal): (&[f64], &[f64]),
     seed: u64,
     tallies: &mut [Tally],
-) -> anyhow::Result<Vec<String>> {
+    redraw_refused: bool,
+) -> anyhow::Result<Option<Vec<String>>> {
     let mut line = Vec::new();
-    for ((method, name), tally) in METHODS.iter().zip(tallies) {
+    for (k, ((method, name), tally)) in METHODS.iter().zip(tallies).enumerate() {
         let call = PlanCall {
             start: start.to_vec(),
             goals: vec![goal.to_vec()],
@@ -192,6 +196,13 @@ fn plan_all(
         let t0 = Instant::now();
         let reply = client.plan_with_flags(&call, flags, Duration::from_secs(30))?;
         let ms = t0.elapsed().as_secs_f64() * 1e3;
+        let ends_refused = matches!(
+            reply.status,
+            Status::StartInCollision | Status::GoalInCollision
+        );
+        if redraw_refused && k == 0 && ends_refused {
+            return Ok(None);
+        }
         tally.episodes += 1;
         if reply.status == Status::Ok {
             match unseen::judge(robot, truth, &reply.path) {
@@ -212,13 +223,18 @@ fn plan_all(
             line.push(format!("{name} {:?}", reply.status));
         }
     }
-    Ok(line)
+    Ok(Some(line))
 }
+
+/// Placements drawn per place episode before it is given up, when the daemon refuses their
+/// ends.
+const PLACE_DRAWS: usize = 4;
 
 /// One place episode: a fresh shelf scene without the can, the robot at the grasp where the
 /// can stood; the daemon is told the hand holds it (attach), every method plans putting it
-/// down, then it is put down where the plan ends (detach) and taken away. None when no
-/// reachable placement was drawn.
+/// down, then it is put down where the plan ends (detach) and taken away. A placement whose
+/// ends the daemon refuses is drawn again (up to [`PLACE_DRAWS`], counted in `refused`). None
+/// when no reachable placement was drawn.
 fn place_episode(
     client: &Client,
     rig: &Rig,
@@ -226,19 +242,41 @@ fn place_episode(
     spec: &DatasetSpec,
     rng: &mut PlannerRng,
     tallies: &mut [Tally],
+    refused: &mut usize,
 ) -> anyhow::Result<Option<Vec<String>>> {
-    let drawn = (0..20)
-        .find_map(|_| problems::sample_place(robot, spec, rng).transpose())
-        .transpose()?;
-    let Some(problems::PlaceTask {
+    for _ in 0..PLACE_DRAWS {
+        let drawn = (0..20)
+            .find_map(|_| problems::sample_place(robot, spec, rng).transpose())
+            .transpose()?;
+        let Some(task) = drawn else {
+            return Ok(None);
+        };
+        match place_once(client, rig, robot, task, rng, tallies)? {
+            Some(line) => return Ok(Some(line)),
+            None => *refused += 1,
+        }
+    }
+    Ok(Some(vec![format!(
+        "place: the daemon refused the ends of {PLACE_DRAWS} placements drawn"
+    )]))
+}
+
+/// [`place_episode`] for one drawn task; `None` when the daemon refused its ends (nothing
+/// counted; the can is put down and taken away all the same).
+fn place_once(
+    client: &Client,
+    rig: &Rig,
+    robot: &Robot,
+    task: problems::PlaceTask,
+    rng: &mut PlannerRng,
+    tallies: &mut [Tally],
+) -> anyhow::Result<Option<Vec<String>>> {
+    let problems::PlaceTask {
         scene,
         held,
         start,
         goal,
-    }) = drawn
-    else {
-        return Ok(None);
-    };
+    } = task;
     let o = &held.object;
     let holding = robot.with_attached(robot.tip(), &o.name, o.shape, o.pose);
     let truth = scene.environment()?;
@@ -268,7 +306,15 @@ fn place_episode(
         wire::name_str(&s.last_rejection)
     );
     let seed: u64 = rng.random();
-    let line = plan_all(client, &holding, &truth, (&start, &goal), seed, tallies)?;
+    let line = plan_all(
+        client,
+        &holding,
+        &truth,
+        (&start, &goal),
+        seed,
+        tallies,
+        true,
+    )?;
     // Put down where the place ends, then taken away.
     let mut poses = vec![ember_engine::Pose::identity(); robot.links().len()];
     robot.forward_kinematics(&goal, &mut poses);
@@ -282,9 +328,7 @@ fn place_episode(
         [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
     )?;
     wait_until(client, rig, "the removal", |s| s.world_objects == n)?;
-    Ok(Some(
-        line.into_iter().map(|l| format!("place: {l}")).collect(),
-    ))
+    Ok(line.map(|line| line.into_iter().map(|l| format!("place: {l}")).collect()))
 }
 
 /// Prints the table of `tallies` and returns their `RESULT` lines (`prefix method=...`,
@@ -407,6 +451,7 @@ pub fn run(args: DemoArgs) -> anyhow::Result<ExitCode> {
     let mut draws = 0;
     let mut episode = 0;
     let mut with_unseen = 0;
+    let mut placements_refused = 0;
     while episode < args.episodes {
         if draws > 0 {
             scene = problems::sample_scene(&spec, &mut rng);
@@ -443,9 +488,27 @@ pub fn run(args: DemoArgs) -> anyhow::Result<ExitCode> {
         })?;
         episode += 1;
         let seed: u64 = rng.random();
-        let mut line = plan_all(&client, &robot, &truth, (&start, &goal), seed, &mut tallies)?;
+        let mut line = plan_all(
+            &client,
+            &robot,
+            &truth,
+            (&start, &goal),
+            seed,
+            &mut tallies,
+            false,
+        )?
+        .expect("counted whatever the daemon answers");
         if episode % 3 == 1 {
-            match place_episode(&client, &rig, &robot, &spec, &mut rng, &mut placing)? {
+            let placed = place_episode(
+                &client,
+                &rig,
+                &robot,
+                &spec,
+                &mut rng,
+                &mut placing,
+                &mut placements_refused,
+            )?;
+            match placed {
                 Some(placed) => line.extend(placed),
                 None => line.push("place: no reachable placement drawn".into()),
             }
@@ -461,7 +524,8 @@ pub fn run(args: DemoArgs) -> anyhow::Result<ExitCode> {
     let seconds = started.elapsed().as_secs_f64();
 
     println!("\nplace episodes (holding a can, attached through the daemon):");
-    let place_results = report(&placing, "RESULT demo_place", "");
+    let refused = format!(" placements_refused={placements_refused}");
+    let place_results = report(&placing, "RESULT demo_place", &refused);
     println!("\npick episodes:");
     let unseen = format!(" unseen_obstacles={with_unseen}");
     let results = report(&tallies, "RESULT demo", &unseen);
