@@ -84,6 +84,7 @@ pub fn solve<'a>(
     // Per variable, its column of the Jacobian (rotation rows zero for a position goal, which
     // leaves those rows of the step's system at the damping alone: the position's 3×3 system).
     let mut jac = vec![Vector6::<f64>::zeros(); dof];
+    let mut dq = vec![0.0; dof];
     let lambda2 = 0.05f64 * 0.05;
     for attempt in 0..params.attempts {
         match (attempt, seed) {
@@ -139,10 +140,13 @@ pub fn solve<'a>(
             let Some(y) = jjt.cholesky().map(|c| c.solve(&e)) else {
                 break;
             };
-            let n = jac.iter().map(|c| c.dot(&y).powi(2)).sum::<f64>().sqrt();
+            for (d, c) in dq.iter_mut().zip(&jac) {
+                *d = c.dot(&y);
+            }
+            let n = dq.iter().map(|d| d * d).sum::<f64>().sqrt();
             let scale = if n > 0.5 { 0.5 / n } else { 1.0 };
-            for (qi, c) in q.iter_mut().zip(&jac) {
-                *qi += c.dot(&y) * scale;
+            for (qi, d) in q.iter_mut().zip(&dq) {
+                *qi += d * scale;
             }
             robot.enforce_bounds(&mut q);
         }

@@ -433,11 +433,19 @@ mod tests {
 
     /// The spheres clear `q` in `env`, the exact geometry does not, and the check of `q` as a
     /// start or goal, and the validation of paths to and from `q` turning the last joint
-    /// (which leaves `link` in place), find the exact checker's contact.
+    /// (which leaves `link` in place), find the exact checker's contact, after a validation
+    /// in an empty world with the same robot.
     fn assert_hidden_is_found(robot: &Robot, env: &Environment, link: usize, q: &[f64]) {
         assert!(
             !BatchChecker::new(robot, env).state_may_collide(q),
             "the spheres reach the obstacle"
+        );
+        // A validation in an empty world first: the checkers it gives back to the robot must
+        // not carry what could hide there into `env`.
+        let empty = Environment::new();
+        assert_eq!(
+            Validity::new(robot, &empty, 1.0 / 32.0, 0.0).state_contact(q),
+            None
         );
         let mut sut = Validity::new(robot, env, 1.0 / 32.0, 0.0);
         let mut other = q.to_vec();

@@ -38,8 +38,14 @@ pub(super) struct Hiding {
     /// Self pairs (their index) with a part (its point) of link `x` that could hide in link
     /// `y`: `(pair, x, y, point)`; worked out on the first validation.
     parts: Option<Vec<(usize, usize, usize, usize)>>,
-    /// In the validation under way: the moving links and the objects that could hide in
-    /// them, and per link whether a voxel of the map could.
+    /// In the environment checked (worked out on its first validation): the moving links and
+    /// the objects that could hide in them, and with a map, per link whether a voxel could.
+    in_env: Option<InEnvironment>,
+}
+
+/// What may hide where in one environment (see [`Hiding`]).
+#[derive(Clone)]
+struct InEnvironment {
     objects: Vec<(usize, usize)>,
     voxels: Option<Vec<bool>>,
 }
@@ -73,9 +79,13 @@ impl Hiding {
             covers,
             pockets: robot.spheres().pockets.clone(),
             parts: None,
-            objects: Vec::new(),
-            voxels: None,
+            in_env: None,
         }
+    }
+
+    /// Forgets what was worked out for the last environment (its objects or map changed).
+    pub(super) fn new_environment(&mut self) {
+        self.in_env = None;
     }
 
     /// Whether an obstacle with inradius `rho` could hide in link `l`.
@@ -107,7 +117,8 @@ impl BatchChecker {
     /// Validation mode on or off: a batch is also flagged where an obstacle could hide
     /// inside a link ([`BatchChecker::may_hide`]). Returns false, and stays off, when the
     /// lanes cannot stand for the exact geometry (a link with exact parts but no spheres).
-    /// A link's room for a ball is worked out the first time it is asked ([`LinkPockets`]).
+    /// A link's room for a ball is worked out the first time it is asked ([`LinkPockets`]);
+    /// what may hide where, on the first validation in an environment.
     pub(crate) fn validate(&mut self, on: bool) -> bool {
         self.validating = on && self.hiding.covers;
         if !self.validating {
@@ -127,27 +138,28 @@ impl BatchChecker {
             }
             self.hiding.parts = Some(parts);
         }
-        let mut objects = std::mem::take(&mut self.hiding.objects);
-        objects.clear();
-        for (o, object) in self.objects.iter().enumerate() {
-            let rho = f64::from(inradius(object.kind));
-            for &l in &self.moving {
-                if self.hiding.room(rho, l) {
-                    objects.push((l, o));
+        if self.hiding.in_env.is_none() {
+            let mut objects = Vec::new();
+            for (o, object) in self.objects.iter().enumerate() {
+                let rho = f64::from(inradius(object.kind));
+                for &l in &self.moving {
+                    if self.hiding.room(rho, l) {
+                        objects.push((l, o));
+                    }
                 }
             }
+            // A voxel holds a ball of half its edge, asked of each moving link as it is (the
+            // links that never move are checked against the map on the exact geometry).
+            let voxels = self.map.as_ref().map(|m| {
+                let t = m.resolution() / 2.0;
+                let mut room = vec![false; self.hiding.pockets.len()];
+                for &l in &self.moving {
+                    room[l] = self.hiding.pockets[l].has_room_for(t);
+                }
+                room
+            });
+            self.hiding.in_env = Some(InEnvironment { objects, voxels });
         }
-        self.hiding.objects = objects;
-        // A voxel holds a ball of half its edge, asked of each moving link as it is (the
-        // links that never move are checked against the map on the exact geometry).
-        self.hiding.voxels = self.map.as_ref().map(|m| {
-            let t = m.resolution() / 2.0;
-            let mut room = vec![false; self.hiding.pockets.len()];
-            for &l in &self.moving {
-                room[l] = self.hiding.pockets[l].has_room_for(t);
-            }
-            room
-        });
         true
     }
 
@@ -173,7 +185,11 @@ impl BatchChecker {
     #[inline(always)]
     fn may_hide_lanes(&mut self) -> bool {
         let h = &self.hiding;
-        for &(l, o) in &h.objects {
+        // Set whenever validating (by `validate(true)`); without it, nothing is ruled out.
+        let Some(env) = &h.in_env else {
+            return true;
+        };
+        for &(l, o) in &env.objects {
             let p = self.objects[o].t.map(F8::splat);
             if self.within_bound(l, p) {
                 return true;
@@ -181,7 +197,7 @@ impl BatchChecker {
         }
         // A voxel holds a ball of half its edge: any occupied voxel within the bound of a link
         // with room for that ball may be one.
-        if let (Some(map), Some(room)) = (&self.map, &h.voxels) {
+        if let (Some(map), Some(room)) = (&self.map, &env.voxels) {
             for &l in &self.moving {
                 let (_, r) = self.bound[l].unwrap_or_default();
                 if room[l] && unclear_lanes(map.clearance(), self.bounds[l], r, self.live) != 0 {

@@ -547,6 +547,7 @@ impl BatchChecker {
                 )
             }));
         self.map = map;
+        self.hiding.new_environment();
         self.states = 0;
         self.batches = 0;
         self.remembered = 0;
@@ -559,6 +560,7 @@ impl BatchChecker {
     /// ([`BatchChecker::new`] replaces the objects).
     pub(crate) fn without_map(mut self) -> Self {
         self.map = None;
+        self.hiding.new_environment();
         self
     }
 
