@@ -360,7 +360,11 @@ impl Clearance {
         // A loop, not `array::from_fn`: its closure was left uninlined in the batch checker.
         let mut d = [0.0f32; LANES];
         for i in 0..LANES {
-            d[i] = f32::from(g.bricks[brick[i] as usize][within[i] as usize]);
+            // SAFETY: each axis' cell was clamped to `[0, last]`, so its brick lies within
+            // `bdims`, and the bricks are as many as `bdims` holds (both set in
+            // `Level::grow`). The place in the brick is masked, so it needs no check.
+            let brick = unsafe { g.bricks.get_unchecked(brick[i] as usize) };
+            d[i] = f32::from(brick[within[i] as usize & (BRICK * BRICK * BRICK - 1)]);
         }
         let d = F8(d);
         let need = F8::splat(r + l.reach);
