@@ -20,7 +20,7 @@
 //! share, so a snapshot holding the grids costs the next update only the bricks it rewrites.
 
 use super::{BlockKey, OccupancyMap, VoxelKey};
-use crate::collision::batch::lanes::{has_avx2, Mask8, ALL_LANES, F8, LANES};
+use crate::collision::batch::lanes::{Mask8, F8, LANES};
 use std::sync::Arc;
 
 /// Distances are stored in these fractions of a voxel.
@@ -63,8 +63,6 @@ pub struct Clearance {
     /// The same in `f32`, rounded outwards.
     occupied_lo32: [f32; 3],
     occupied_hi32: [f32; 3],
-    /// True when the CPU has AVX2 and FMA: queries read the grids in AVX2 registers.
-    avx2: bool,
 }
 
 /// One grid: cells of edge `res` holding distances to the nearest occupied cell, stored in
@@ -155,7 +153,6 @@ impl Clearance {
             occupied_hi: [0.0; 3],
             occupied_lo32: [0.0; 3],
             occupied_hi32: [0.0; 3],
-            avx2: has_avx2(),
         };
         c.set_cover(cover, res);
         c.recompute(map, cover);
@@ -336,12 +333,46 @@ impl Clearance {
         let fine = f64::from(r) <= self.fine_radius;
         let g = if fine { &self.fine } else { &self.coarse };
         let l = &g.lanes;
-        let (d, off2, inside) = g.read8(p, self.avx2);
+        let res = F8::splat(l.res);
+        let inv = F8::splat(l.inv_res);
+        let zero = F8::splat(0.0);
+        let mut brick = [0u32; LANES];
+        let mut within = [0u32; LANES];
+        let mut off2 = zero;
+        let mut inside = None;
+        for (a, &pa) in p.iter().enumerate() {
+            let x = pa * inv;
+            let f = x.floor();
+            // Cell coordinates are exact in `f32`: the grid lies within `CELL_LIMIT`.
+            let c = f - F8::splat(l.lo[a]);
+            let last = F8::splat(l.last[a]);
+            let ok = zero.le(c) & c.le(last) & x.abs().le(F8::splat(CELL_LIMIT));
+            inside = Some(inside.map_or(ok, |m| m & ok));
+            // Whole numbers below 2²⁰ (MAX_CELLS / 64: the other two axes hold a brick each).
+            let k = c.max(zero).min(last).small_uints();
+            for i in 0..LANES {
+                brick[i] = brick[i] * l.bdims[a] + (k[i] >> BRICK_BITS);
+                within[i] = (within[i] << BRICK_BITS) | (k[i] & (BRICK as u32 - 1));
+            }
+            let o = pa - (f + F8::splat(0.5)) * res;
+            off2 = o.mul_add(o, off2);
+        }
+        // A loop, not `array::from_fn`: its closure was left uninlined in the batch checker.
+        let mut d = [0.0f32; LANES];
+        for i in 0..LANES {
+            // SAFETY: each axis' cell was clamped to `[0, last]`, so its brick lies within
+            // `bdims`, and the bricks are as many as `bdims` holds (both set in
+            // `Level::grow`). The place in the brick is masked, so it needs no check.
+            let brick = unsafe { g.bricks.get_unchecked(brick[i] as usize) };
+            d[i] = f32::from(brick[within[i] as usize & (BRICK * BRICK * BRICK - 1)]);
+        }
+        let d = F8(d);
         let need = F8::splat(r + l.reach);
         let d = d * F8::splat(l.step);
         let off = off2.sqrt();
         // Not `<`: a lane with a NaN stays unclear.
         let clear = need.le(d - off);
+        let inside = inside.expect("three axes");
         let asked = Mask8::from_bits(lanes);
         if CONFIRM && fine {
             let touch = (d + off + F8::splat(l.step + F32_SLACK)).le(F8::splat(r));
@@ -407,120 +438,6 @@ impl Level {
             lanes: LaneGrid::default(),
         };
         level.grow((lo, hi)).then_some(level)
-    }
-
-    /// For the balls at `p` (eight lanes): the stored value of the cell each centre lies in
-    /// (the nearest cell for a centre outside), the squared offset of the centre from that
-    /// cell's centre, and the lanes whose centre lies inside the grid.
-    #[inline(always)]
-    fn read8(&self, p: [F8; 3], avx2: bool) -> (F8, F8, Mask8) {
-        #[cfg(target_arch = "x86_64")]
-        if avx2 {
-            // SAFETY: the CPU has AVX2 and FMA (`has_avx2`, asked when the grids were made).
-            return unsafe { self.read8_avx2(p) };
-        }
-        let _ = avx2;
-        let l = &self.lanes;
-        let res = F8::splat(l.res);
-        let inv = F8::splat(l.inv_res);
-        let zero = F8::splat(0.0);
-        let mut brick = [0u32; LANES];
-        let mut within = [0u32; LANES];
-        let mut off2 = zero;
-        let mut inside = Mask8::from_bits(ALL_LANES);
-        for (a, &pa) in p.iter().enumerate() {
-            let x = pa * inv;
-            let f = x.floor();
-            // Cell coordinates are exact in `f32`: the grid lies within `CELL_LIMIT`.
-            let c = f - F8::splat(l.lo[a]);
-            let last = F8::splat(l.last[a]);
-            inside = inside & zero.le(c) & c.le(last) & x.abs().le(F8::splat(CELL_LIMIT));
-            // Whole numbers below 2²⁰ (MAX_CELLS / 64: the other two axes hold a brick each).
-            let k = c.max(zero).min(last).small_uints();
-            for i in 0..LANES {
-                brick[i] = brick[i] * l.bdims[a] + (k[i] >> BRICK_BITS);
-                within[i] = (within[i] << BRICK_BITS) | (k[i] & (BRICK as u32 - 1));
-            }
-            let o = pa - (f + F8::splat(0.5)) * res;
-            off2 = o.mul_add(o, off2);
-        }
-        (self.cells8(&brick, &within), off2, inside)
-    }
-
-    /// [`Level::read8`] in AVX2 registers: the same operations in the same order (the
-    /// portable loop's integer work on the cell numbers was split into halves and spilled,
-    /// ~180 instructions a query). Left out of line: inlined at every query (by dropping its
-    /// `target_feature`, so the batch checker's AVX2 code took it in) it cost more.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    #[inline]
-    unsafe fn read8_avx2(&self, p: [F8; 3]) -> (F8, F8, Mask8) {
-        use std::arch::x86_64::*;
-        let l = &self.lanes;
-        let res = _mm256_set1_ps(l.res);
-        let inv = _mm256_set1_ps(l.inv_res);
-        let zero = _mm256_setzero_ps();
-        let magnitude = _mm256_castsi256_ps(_mm256_set1_epi32(i32::MAX));
-        let mut brick = _mm256_setzero_si256();
-        let mut within = _mm256_setzero_si256();
-        let mut off2 = zero;
-        let mut inside = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
-        for (a, pa) in p.iter().enumerate() {
-            // SAFETY: an `F8` is 32 bytes aligned to 32.
-            let pa = unsafe { _mm256_load_ps(pa.0.as_ptr()) };
-            let x = _mm256_mul_ps(pa, inv);
-            let f = _mm256_round_ps::<{ _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC }>(x);
-            let c = _mm256_sub_ps(f, _mm256_set1_ps(l.lo[a]));
-            let last = _mm256_set1_ps(l.last[a]);
-            let limit = _mm256_set1_ps(CELL_LIMIT);
-            let ok = _mm256_and_ps(
-                _mm256_and_ps(
-                    _mm256_cmp_ps::<_CMP_LE_OQ>(zero, c),
-                    _mm256_cmp_ps::<_CMP_LE_OQ>(c, last),
-                ),
-                _mm256_cmp_ps::<_CMP_LE_OQ>(_mm256_and_ps(x, magnitude), limit),
-            );
-            inside = _mm256_and_ps(inside, ok);
-            // As `F8::max` and `F8::min`: the second operand where the first is NaN or equal.
-            let k = _mm256_cvtps_epi32(_mm256_min_ps(_mm256_max_ps(c, zero), last));
-            brick = _mm256_add_epi32(
-                _mm256_mullo_epi32(brick, _mm256_set1_epi32(l.bdims[a] as i32)),
-                _mm256_srli_epi32::<{ BRICK_BITS as i32 }>(k),
-            );
-            within = _mm256_or_si256(
-                _mm256_slli_epi32::<{ BRICK_BITS as i32 }>(within),
-                _mm256_and_si256(k, _mm256_set1_epi32(BRICK as i32 - 1)),
-            );
-            let centre = _mm256_mul_ps(_mm256_add_ps(f, _mm256_set1_ps(0.5)), res);
-            let o = _mm256_sub_ps(pa, centre);
-            off2 = _mm256_fmadd_ps(o, o, off2);
-        }
-        let (mut b, mut w) = ([0u32; LANES], [0u32; LANES]);
-        // SAFETY: eight `u32` are 32 bytes (unaligned stores).
-        unsafe {
-            _mm256_storeu_si256(b.as_mut_ptr().cast(), brick);
-            _mm256_storeu_si256(w.as_mut_ptr().cast(), within);
-        }
-        let mut o2 = F8::default();
-        // SAFETY: an `F8` is 32 bytes aligned to 32.
-        unsafe { _mm256_store_ps(o2.0.as_mut_ptr(), off2) };
-        let inside = Mask8::from_bits(_mm256_movemask_ps(inside) as u32);
-        (self.cells8(&b, &w), o2, inside)
-    }
-
-    /// The stored values of the cells at places `within` of bricks `brick`, as `f32` lanes.
-    #[inline(always)]
-    fn cells8(&self, brick: &[u32; LANES], within: &[u32; LANES]) -> F8 {
-        // A loop, not `array::from_fn`: its closure was left uninlined in the batch checker.
-        let mut d = [0.0f32; LANES];
-        for i in 0..LANES {
-            // SAFETY: each axis' cell was clamped to `[0, last]`, so its brick lies within
-            // `bdims`, and the bricks are as many as `bdims` holds (both set in
-            // `Level::grow`). The place in the brick is masked, so it needs no check.
-            let cells = unsafe { self.bricks.get_unchecked(brick[i] as usize) };
-            d[i] = f32::from(cells[within[i] as usize & (BRICK * BRICK * BRICK - 1)]);
-        }
-        F8(d)
     }
 
     /// Saturated distance in stored units.
@@ -951,35 +868,6 @@ mod tests {
                 want |= (!clear as u32) << i;
             }
             prop_assert_eq!(c.unclear8(p, r, lanes), want);
-        }
-
-        /// The AVX2 reading of the grids gives the portable one's cells, offsets and lanes
-        /// inside, bit for bit (centres outside the grids, far off and NaN included).
-        #[test]
-        fn avx2_reads_equal_the_portable_ones(
-            voxels in prop::collection::vec(prop::array::uniform3(-12i32..12), 1..40),
-            centres in prop::collection::vec(prop::array::uniform3(-0.8f32..0.8), 8),
-            odd in 0usize..10,
-        ) {
-            if !has_avx2() {
-                return Ok(());
-            }
-            let map = map_of(&voxels);
-            let c = Clearance::of(&map, 0.2).unwrap();
-            let mut p: [F8; 3] = std::array::from_fn(|a| F8(std::array::from_fn(|i| centres[i][a])));
-            match odd {
-                0 => p[1].0[3] = f32::NAN,
-                1 => p[0].0[5] = 1e9,
-                2 => p[2].0[0] = -f32::INFINITY,
-                _ => {}
-            }
-            for g in [&c.fine, &c.coarse] {
-                let (d, off2, inside) = g.read8(p, false);
-                let (d2, off22, inside2) = g.read8(p, true);
-                prop_assert_eq!(d.0.map(f32::to_bits), d2.0.map(f32::to_bits));
-                prop_assert_eq!(off2.0.map(f32::to_bits), off22.0.map(f32::to_bits));
-                prop_assert_eq!(inside.bits(), inside2.bits());
-            }
         }
 
         /// A contact the grid confirms is one the voxels confirm in a lane asked; otherwise the
