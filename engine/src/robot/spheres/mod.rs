@@ -422,9 +422,8 @@ fn split_clusters(spheres: &mut [Sphere], out: &mut Vec<Vec<Sphere>>) {
 }
 
 /// A ball holding the balls `(centers, radii)`, near the smallest such: the bound of a
-/// cluster or a link, which the checkers test before what it holds (a tighter one lets fewer
-/// tests through: its centre found as below took table_pick's search from 136.0M to 129.8M
-/// instructions against the box's middle, with the same verdicts).
+/// cluster or a link, which the checkers test before what it holds, so a tighter one lets
+/// fewer tests through (the verdicts are the same whatever the bound).
 fn bounding_sphere(centers: &[[f64; 3]], radii: &[f64]) -> Option<([f64; 3], f64)> {
     if centers.is_empty() {
         return None;
