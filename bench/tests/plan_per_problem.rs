@@ -63,6 +63,16 @@ fn per_problem_lines_name_each_problem_and_agree_with_the_result_line() {
     assert_eq!(key(result, "n"), "2", "{result}");
     assert_eq!(key(result, "solved"), solved.to_string(), "{result}");
     assert_eq!(solved, 2, "{stdout}");
+    // The solved problems' planning times, summed (each printed to a microsecond).
+    let summed: f64 = problems
+        .iter()
+        .map(|l| key(l, "ms").parse::<f64>().expect("ms"))
+        .sum();
+    let sum: f64 = key(result, "solved_sum_ms").parse().expect("solved_sum_ms");
+    assert!(
+        (sum - summed).abs() < 0.002,
+        "{sum} against {summed}: {result}"
+    );
     assert!(
         stdout
             .lines()
