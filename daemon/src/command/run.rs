@@ -18,6 +18,7 @@ use ember_engine::world::model::World;
 use ember_sdk::launch::Ready;
 use ember_sdk::services::{self, Open, Wake};
 use iceoryx2::prelude::*;
+use iceoryx2_bb_posix::signal::SignalHandler;
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{mpsc, Arc, Mutex, RwLock};
@@ -36,27 +37,6 @@ fn save(config: &Config, experience: &mut Experience) {
             error!("setting the mode of {}: {e}", file.display());
         }
     }
-}
-
-/// A thread that sets `terminate` when SIGINT/SIGTERM arrive (iceoryx2's handler records them;
-/// a node's wait reports them), until `stop` is set.
-fn watch_termination(
-    terminate: Arc<AtomicBool>,
-    stop: Arc<AtomicBool>,
-) -> anyhow::Result<std::thread::JoinHandle<()>> {
-    Ok(std::thread::Builder::new()
-        .name("signals".into())
-        .spawn(move || {
-            let Ok(node) = NodeBuilder::new().create::<ipc::Service>() else {
-                return;
-            };
-            while !stop.load(Ordering::Relaxed) {
-                if node.wait(Duration::from_millis(10)).is_err() {
-                    terminate.store(true, Ordering::Relaxed);
-                    return;
-                }
-            }
-        })?)
 }
 
 /// The configuration with the command line's overrides.
@@ -191,14 +171,15 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         },
         recording,
     };
+    // SIGINT/SIGTERM: from here on iceoryx2's handler records them (before the ready line, so
+    // a signal sent on seeing it is never the default, fatal one); the loop below looks each
+    // round, then cancels the plans in flight (each ends as `cancelled` within milliseconds),
+    // answers them and stops.
+    let mut terminate = SignalHandler::termination_requested();
     println!("{ready}");
     use std::io::Write;
     std::io::stdout().flush().ok();
 
-    // SIGINT/SIGTERM: the watcher sets `terminate`; the loop below then cancels the plans in
-    // flight (each ends as `cancelled` within milliseconds), answers them and stops.
-    let terminate = Arc::new(AtomicBool::new(false));
-    let watcher = watch_termination(terminate.clone(), stop.clone())?;
     let cx = PlanContext {
         config: &config,
         robot: &robot,
@@ -225,7 +206,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         // requests gets them picked up within microseconds), then sleep until a client or a
         // worker notifies (or the idle wait ends: clients that do not notify, the stop flag).
         let mut last_request = Instant::now() - Duration::from_secs(1);
-        while !terminate.load(Ordering::Relaxed) {
+        while !terminate {
             if last_request.elapsed() < Duration::from_millis(20) {
                 std::thread::yield_now();
                 let _ = wake.try_wait(|_| {});
@@ -240,6 +221,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
             }
             status.serve(&sources);
             cancel.serve(&stats.in_flight);
+            terminate |= SignalHandler::termination_requested();
             if last_save.elapsed().as_secs_f64() >= config.experience.save_every_s {
                 let mut experience = experience
                     .write()
@@ -263,7 +245,6 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         .into_inner()
         .unwrap_or_else(std::sync::PoisonError::into_inner);
     stop.store(true, Ordering::Relaxed);
-    let _ = watcher.join();
     match ingest.join() {
         Ok(Err(e)) => error!("ingest stopped with an error: {e:#}"),
         Err(_) => error!("ingest thread panicked"),

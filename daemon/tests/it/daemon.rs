@@ -438,6 +438,19 @@ fn the_configured_file_mode_applies_to_databases_and_recordings() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// SIGTERM the moment the ready line is out: a clean exit and a complete recording (the daemon
+/// takes termination requests before it says it is ready).
+#[test]
+fn sigterm_at_the_ready_line_exits_cleanly() {
+    for i in 0..4 {
+        let mut d = Daemon::start(&format!("early{i}"));
+        d.signal("-TERM");
+        let code = d.child.wait().unwrap();
+        assert!(code.success(), "run {i}: {code:?}");
+        ember_sdk::session::Session::open(&d.recording).unwrap();
+    }
+}
+
 #[test]
 fn sigterm_saves_the_database_and_sigkill_allows_an_immediate_restart() {
     let d = Daemon::start("life");
