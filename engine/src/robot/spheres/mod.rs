@@ -439,34 +439,34 @@ fn bounding_sphere(centers: &[[f64; 3]], radii: &[f64]) -> Option<([f64; 3], f64
         lo = lo.inf(&(c - Vector3::repeat(r)));
         hi = hi.sup(&(c + Vector3::repeat(r)));
     }
-    // The radius about a centre: the farthest ball's far side.
-    let reach = |m: &Vector3<f64>| {
+    // The farthest ball from a centre (the last of equals) and its far side's distance: the
+    // radius about that centre.
+    let farthest = |m: &Vector3<f64>| {
         balls
             .iter()
-            .map(|(c, r)| (c - m).norm() + r)
-            .fold(0.0, f64::max)
+            .map(|&(c, r)| ((c, r), (c - m).norm() + r))
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+            .expect("not empty")
     };
     // From the box's middle, shrinking steps towards the farthest ball's far point
     // (Bădoiu–Clarkson), keeping the best centre seen. Whatever the centre, the radius is
     // measured from it, so the ball holds every ball.
     let mut m = (lo + hi) / 2.0;
-    let mut best = (m, reach(&m));
-    for k in 1..=100 {
-        let (c, r) = balls
-            .iter()
-            .max_by(|a, b| ((a.0 - m).norm() + a.1).total_cmp(&((b.0 - m).norm() + b.1)))
-            .copied()
-            .expect("not empty");
-        let d = c - m;
-        let far = match d.try_normalize(1e-12) {
+    const STEPS: usize = 100;
+    let mut best = (m, f64::INFINITY);
+    for k in 1..=STEPS + 1 {
+        let ((c, r), here) = farthest(&m);
+        if here < best.1 {
+            best = (m, here);
+        }
+        if k > STEPS {
+            break;
+        }
+        let far = match (c - m).try_normalize(1e-12) {
             Some(u) => c + u * r,
             None => c,
         };
         m += (far - m) / (k as f64 + 1.0);
-        let here = reach(&m);
-        if here < best.1 {
-            best = (m, here);
-        }
     }
     let (m, radius) = best;
     Some(([m.x, m.y, m.z], radius))
