@@ -1491,7 +1491,7 @@ fn lanes_touch_map(
         let i = unclear.trailing_zeros() as usize;
         unclear &= unclear - 1;
         let c = [p[0].0[i], p[1].0[i], p[2].0[i]].map(f64::from);
-        if m.sphere_touches_voxels(c, f64::from(r)) {
+        if m.sphere_collides(c, f64::from(r)) {
             return true;
         }
     }
