@@ -11,7 +11,11 @@
 //! emberd plans with `planner.use_map`); the `RESULT plan` line is then the map-on run (key
 //! `objects=1`), followed by `RESULT plan_map set= n= solved_off= solved_on= off_median_ms=
 //! on_median_ms= ratio= off_check_ns_per_config= on_check_ns_per_config= off_median_iterations=
-//! on_median_iterations=` (the check cost apart from how much harder the voxels make a problem). For each folder prints success, refusals and
+//! on_median_iterations= solved_voxels= voxels_median_ms= voxels_check_ns_per_config=
+//! voxels_check_ratio= voxels_median_iterations=` (the check cost apart from how much harder the
+//! voxels make a problem; the `voxels_` keys plan a third time against the cloud's map alone,
+//! and `voxels_check_ratio` is its check cost over the objects': voxels against primitives for
+//! the same obstacles). For each folder prints success, refusals and
 //! planning-time statistics (planning = IK + search; simplification and the exact validation
 //! reported apart) and ends with `RESULT plan set=<folder> n=<problems> solved=<count>
 //! median_ms=<f> mean_ms=<f> p95_ms=<f> start_refused=<k> goal_refused=<k>
@@ -104,6 +108,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         // With --map-compare: the scene's objects alone, and with the cloud's map added.
         let mut tally = Tally::default();
         let mut objects_only = Tally::default();
+        let mut voxels_only = Tally::default();
+        let mut voxels = None;
         let mut map_ms = Vec::new();
         // The robot with the joints outside the group (fingers, head) as a problem's start
         // state sets them, kept while the next problem sets them alike: a daemon keeps its
@@ -121,6 +127,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     let map = cloud_map(&file, args.cloud_resolution)?;
                     map_ms.push(t.elapsed().as_secs_f64() * 1e3);
                     let mut env = if args.map_compare {
+                        voxels = Some(file);
                         p.scene.environment()?
                     } else {
                         Environment::new()
@@ -156,10 +163,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     ..Default::default()
                 },
             };
-            if args.map_compare {
+            if voxels.is_some() {
                 objects_only.plan(robot, &p.scene.environment()?, &req, args.time_limit);
             }
             let outcome = tally.plan(robot, &env, &req, args.time_limit);
+            // The map alone, built anew just before as for the other runs (not warmed by them).
+            if let Some(file) = voxels.take() {
+                let mut alone = Environment::new();
+                alone.set_map(Some(cloud_map(&file, args.cloud_resolution)?));
+                voxels_only.plan(robot, &alone, &req, args.time_limit);
+            }
             if args.per_problem {
                 println!("PROBLEM set={} index={} {outcome}", set.name, p.index);
             }
@@ -178,20 +191,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         if args.map_compare {
             let (off, _, _) = summary(&mut objects_only.times.clone());
             let (on, _, _) = summary(&mut tally.times.clone());
+            let (alone, _, _) = summary(&mut voxels_only.times.clone());
             let (off_it, _, _) = summary(&mut objects_only.iterations.clone());
             let (on_it, _, _) = summary(&mut tally.iterations.clone());
+            let (alone_it, _, _) = summary(&mut voxels_only.iterations.clone());
+            let off_ns = objects_only.split.check_ns_per_config();
+            let voxels_ns = voxels_only.split.check_ns_per_config();
             results.push(format!(
                 "RESULT plan_map set={} n={} solved_off={} solved_on={} off_median_ms={off:.3} \
-                 on_median_ms={on:.3} ratio={:.3} off_check_ns_per_config={:.1} \
+                 on_median_ms={on:.3} ratio={:.3} off_check_ns_per_config={off_ns:.1} \
                  on_check_ns_per_config={:.1} off_median_iterations={off_it:.0} \
-                 on_median_iterations={on_it:.0}",
+                 on_median_iterations={on_it:.0} solved_voxels={} voxels_median_ms={alone:.3} \
+                 voxels_check_ns_per_config={voxels_ns:.1} voxels_check_ratio={:.3} \
+                 voxels_median_iterations={alone_it:.0}",
                 set.name,
                 tally.times.len(),
                 objects_only.solved,
                 tally.solved,
                 on / off.max(1e-9),
-                objects_only.split.check_ns_per_config(),
                 tally.split.check_ns_per_config(),
+                voxels_only.solved,
+                voxels_ns / off_ns.max(1e-9),
             ));
         }
         loaded = Some((spec.robot.clone(), robot));

@@ -7,21 +7,7 @@ mod common;
 
 #[test]
 fn per_problem_lines_name_each_problem_and_agree_with_the_result_line() {
-    let fixtures = concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/fixtures/moveit");
-    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("plan_per_problem");
-    std::fs::create_dir_all(&dir).expect("folder");
-    for (n, request) in [(3, "request_joint.yaml"), (8, "request_pose.yaml")] {
-        std::fs::copy(
-            format!("{fixtures}/scene.yaml"),
-            dir.join(format!("scene{n:04}.yaml")),
-        )
-        .expect("scene");
-        std::fs::copy(
-            format!("{fixtures}/{request}"),
-            dir.join(format!("request{n:04}.yaml")),
-        )
-        .expect("request");
-    }
+    let dir = common::problem_folder("plan_per_problem");
     let dir_arg = dir.as_os_str().to_owned();
     let stdout = common::ember_bench([
         "plan".as_ref(),
@@ -36,11 +22,7 @@ fn per_problem_lines_name_each_problem_and_agree_with_the_result_line() {
         .filter(|l| l.starts_with("PROBLEM "))
         .collect();
     assert_eq!(problems.len(), 2, "{stdout}");
-    let key = |line: &str, k: &str| -> String {
-        line.split_whitespace()
-            .find_map(|kv| kv.strip_prefix(&format!("{k}=")).map(str::to_string))
-            .unwrap_or_else(|| panic!("no {k} in {line}"))
-    };
+    use common::key;
     assert_eq!(key(problems[0], "index"), "3");
     assert_eq!(key(problems[1], "index"), "8");
     let solved = problems

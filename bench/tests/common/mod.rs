@@ -22,3 +22,34 @@ where
     );
     stdout
 }
+
+/// A folder `name` under the tests' scratch directory holding two hand-written MoveIt
+/// problems, numbered 3 and 8: the fixtures' table scene with a joint goal and with a pose
+/// goal.
+#[allow(dead_code)]
+pub fn problem_folder(name: &str) -> std::path::PathBuf {
+    let fixtures = concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/fixtures/moveit");
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    std::fs::create_dir_all(&dir).expect("folder");
+    for (n, request) in [(3, "request_joint.yaml"), (8, "request_pose.yaml")] {
+        std::fs::copy(
+            format!("{fixtures}/scene.yaml"),
+            dir.join(format!("scene{n:04}.yaml")),
+        )
+        .expect("scene");
+        std::fs::copy(
+            format!("{fixtures}/{request}"),
+            dir.join(format!("request{n:04}.yaml")),
+        )
+        .expect("request");
+    }
+    dir
+}
+
+/// The value of key `k` in a `key=value` line; panics naming the key when it is missing.
+#[allow(dead_code)]
+pub fn key(line: &str, k: &str) -> String {
+    line.split_whitespace()
+        .find_map(|kv| kv.strip_prefix(&format!("{k}=")).map(str::to_string))
+        .unwrap_or_else(|| panic!("no {k} in {line}"))
+}
