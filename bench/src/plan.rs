@@ -163,7 +163,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     ..Default::default()
                 },
             };
-            if voxels.is_some() {
+            if args.map_compare {
                 objects_only.plan(robot, &p.scene.environment()?, &req, args.time_limit);
             }
             let outcome = tally.plan(robot, &env, &req, args.time_limit);

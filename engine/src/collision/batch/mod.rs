@@ -1491,7 +1491,13 @@ fn lanes_touch_map(
         let i = unclear.trailing_zeros() as usize;
         unclear &= unclear - 1;
         let c = [p[0].0[i], p[1].0[i], p[2].0[i]].map(f64::from);
-        if m.sphere_collides(c, f64::from(r)) {
+        // The lane's own cell could not decide it: the cells around it, then the voxels.
+        let rf = f64::from(r);
+        let touches = match grid.and_then(|g| g.refine(c, rf)) {
+            Some(touches) => touches,
+            None => m.sphere_touches_voxels(c, rf),
+        };
+        if touches {
             return true;
         }
     }

@@ -283,8 +283,7 @@ impl Clearance {
                 } else if d + off + level.res / STEPS + F64_SLACK < r {
                     Some(true)
                 } else {
-                    // Between the two: the eight cells around the centre bound it tighter.
-                    level.bracket(p, r)
+                    self.refine(p, r)
                 }
             }
             None => {
@@ -302,6 +301,18 @@ impl Clearance {
                     .sum();
                 (d2 >= r * r).then_some(false)
             }
+        }
+    }
+
+    /// [`Clearance::decide`] for a ball its centre's own cell could not decide: the eight cells
+    /// whose centres surround `p` bound the distance tighter (the fine grid only; `None` for
+    /// larger balls, or when the voxels must decide).
+    #[inline]
+    pub fn refine(&self, p: [f64; 3], r: f64) -> Option<bool> {
+        if r <= self.fine_radius {
+            self.fine.bracket(p, r)
+        } else {
+            None
         }
     }
 
