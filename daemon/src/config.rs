@@ -53,6 +53,9 @@ pub struct Config {
     pub package_path: Vec<PathBuf>,
     /// Sphere protrusion, metres; 0 keeps the description's.
     pub sphere_protrusion: f64,
+    /// Sphere protrusion on the hand (the tip link and the links below it), metres; 0 keeps
+    /// the description's.
+    pub sphere_protrusion_hand: f64,
     /// MoveIt joint_limits.yaml over the description's limits; empty for none.
     pub joint_limits: PathBuf,
     /// Mode of the files emberd creates, octal text (see [`Config::file_mode`]).
@@ -221,7 +224,8 @@ fn merge(base: &mut toml::Table, over: toml::Table) {
 }
 
 impl Config {
-    /// The robot the `robot`, `srdf`, `group`, `package_path` and `sphere_protrusion` keys name.
+    /// The robot the `robot`, `srdf`, `group`, `package_path` and `sphere_protrusion(_hand)`
+    /// keys name.
     pub fn robot_spec(&self) -> ember_engine::robot::RobotSpec {
         ember_engine::robot::RobotSpec {
             robot: self.robot.clone(),
@@ -229,6 +233,8 @@ impl Config {
             group: (!self.group.is_empty()).then(|| self.group.clone()),
             package_paths: self.package_path.clone(),
             protrusion: (self.sphere_protrusion != 0.0).then_some(self.sphere_protrusion),
+            hand_protrusion: (self.sphere_protrusion_hand != 0.0)
+                .then_some(self.sphere_protrusion_hand),
             sphere_cache: Default::default(),
             joint_limits: (!self.joint_limits.as_os_str().is_empty())
                 .then(|| self.joint_limits.clone()),

@@ -110,6 +110,9 @@ pub struct RobotSpec {
     pub package_paths: Vec<PathBuf>,
     /// Sphere protrusion overriding the description's, metres.
     pub protrusion: Option<f64>,
+    /// Sphere protrusion on the hand (the tip link and the links below it) overriding the
+    /// description's, metres.
+    pub hand_protrusion: Option<f64>,
     /// Where fitted spheres are cached.
     pub sphere_cache: SphereCache,
     /// A MoveIt `joint_limits.yaml` overriding the description's velocity limits and adding
@@ -137,6 +140,9 @@ pub struct RobotArgs {
     /// How far fitted spheres may stick out of the robot's geometry, metres [default: the robot file's, else 0.01].
     #[arg(long)]
     pub sphere_protrusion: Option<f64>,
+    /// Sphere protrusion on the hand: the group's tip link and the links below it, metres [default: the robot file's, else 0.004].
+    #[arg(long)]
+    pub sphere_protrusion_hand: Option<f64>,
     /// MoveIt joint_limits.yaml: velocity, acceleration and jerk limits per joint (over the URDF's).
     #[arg(long)]
     pub joint_limits: Option<PathBuf>,
@@ -155,6 +161,7 @@ impl RobotArgs {
             group: self.group.clone(),
             package_paths: self.package_path.clone(),
             protrusion: self.sphere_protrusion,
+            hand_protrusion: self.sphere_protrusion_hand,
             sphere_cache: SphereCache::Default,
             joint_limits: self.joint_limits.clone(),
         }
@@ -471,6 +478,9 @@ impl RobotSpec {
         if let Some(p) = self.protrusion {
             params.protrusion = p;
         }
+        if let Some(h) = self.hand_protrusion {
+            params.hand = Some(h);
+        }
         params
             .validate()
             .map_err(|message| LoadRobotError::Element {
@@ -478,6 +488,7 @@ impl RobotSpec {
                 element: "spheres".into(),
                 message,
             })?;
+        let params = params.with_hand(robot.hand_links().map(|i| robot.links[i].name.as_str()));
         for link in &robot.links {
             let protrusion = params.protrusion_of(&link.name);
             let area = super::spheres::fit::surface_area(&link.collision);

@@ -199,6 +199,20 @@ impl Robot {
         self.tip
     }
 
+    /// The hand: the tip link and every link below it (a gripper and its fingers).
+    pub fn hand_links(&self) -> impl Iterator<Item = usize> + '_ {
+        (0..self.links.len()).filter(|&i| {
+            let mut at = Some(i);
+            while let Some(l) = at {
+                if l == self.tip {
+                    return true;
+                }
+                at = self.links[l].parent;
+            }
+            false
+        })
+    }
+
     /// A named configuration (`stow`, `ready`, ...).
     pub fn named_state(&self, name: &str) -> Option<&[f64]> {
         self.named_states

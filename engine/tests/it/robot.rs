@@ -105,10 +105,40 @@ fn fitted_spheres_cover_the_meshes_within_the_protrusion() {
             assert!(q.protrusion <= protrusion + 1e-6, "{}: {q:?}", link.name);
         }
     }
+    // A tighter bound on the hand (the tip link and the links below it) applies there only.
+    let robot = RobotSpec {
+        protrusion: Some(0.02),
+        hand_protrusion: Some(0.005),
+        ..spec(&bot)
+    }
+    .load()
+    .unwrap();
+    let hand: Vec<usize> = robot.hand_links().collect();
+    assert!(hand.contains(&robot.tip()) && hand.len() < robot.links().len());
+    let mut coarse_elsewhere = false;
+    for (i, link) in robot.links().iter().enumerate() {
+        if link.collision.is_empty() {
+            continue;
+        }
+        let spheres: Vec<_> = robot.spheres().link_spheres(i).collect();
+        let q = measure(&link.collision, &spheres, 3000, 1);
+        assert_eq!(q.coverage, 1.0, "{}: {q:?}", link.name);
+        if hand.contains(&i) {
+            assert!(
+                q.protrusion <= 0.005 + 1e-6,
+                "hand link {}: {q:?}",
+                link.name
+            );
+        } else {
+            coarse_elsewhere |= q.protrusion > 0.01;
+        }
+    }
+    assert!(coarse_elsewhere, "the arm's links kept the 2 cm bound");
     // A second load reads the disk cache instead of fitting (a protrusion no other test uses,
-    // so no other test refills the in-process memo meanwhile).
+    // on the hand too, so no other test refills the in-process memo meanwhile).
     let odd = RobotSpec {
         protrusion: Some(0.0137),
+        hand_protrusion: Some(0.0137),
         ..spec(&bot)
     };
     assert!(odd.load().unwrap().spheres().build.fitted > 0);

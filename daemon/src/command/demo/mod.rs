@@ -73,6 +73,9 @@ impl DemoDaemon {
         if let Some(p) = spec.protrusion {
             table.insert("sphere_protrusion".into(), p.into());
         }
+        if let Some(h) = spec.hand_protrusion {
+            table.insert("sphere_protrusion_hand".into(), h.into());
+        }
         std::fs::write(&config, toml::to_string(&table)?)?;
         let mut cmd = Command::new(std::env::current_exe()?);
         cmd.args(["run", "--instance", &args.instance, "--config"])

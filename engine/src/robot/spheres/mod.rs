@@ -35,16 +35,31 @@ pub struct SpherizeParams {
     /// Per-link overrides of `protrusion` (coarser spheres for large static body parts).
     #[serde(default)]
     pub links: std::collections::BTreeMap<String, f64>,
+    /// Protrusion on the hand: the group's tip link and every link below it (the gripper and
+    /// its fingers), which reach into shelves and between objects (default
+    /// [`DEFAULT_HAND_PROTRUSION`]; `None`: as the rest). A link named in `links` keeps its
+    /// own, and the hand is never looser than `protrusion`.
+    #[serde(default = "default_hand")]
+    pub hand: Option<f64>,
 }
 
 /// Default protrusion: 1 cm.
 pub const DEFAULT_PROTRUSION: f64 = 0.01;
+
+/// Default protrusion on the hand: 4 mm (a 1 cm bound makes fingers 1–2 cm thick nearly
+/// twice as thick, and the narrow slots of a shelf unreachable).
+pub const DEFAULT_HAND_PROTRUSION: f64 = 0.004;
+
+fn default_hand() -> Option<f64> {
+    Some(DEFAULT_HAND_PROTRUSION)
+}
 
 impl Default for SpherizeParams {
     fn default() -> Self {
         Self {
             protrusion: DEFAULT_PROTRUSION,
             links: Default::default(),
+            hand: default_hand(),
         }
     }
 }
@@ -55,6 +70,20 @@ impl SpherizeParams {
         self.links.get(link).copied().unwrap_or(self.protrusion)
     }
 
+    /// These parameters with the hand's protrusion written out per link for `hand_links`
+    /// (see [`SpherizeParams::hand`]).
+    pub fn with_hand<'a>(&self, hand_links: impl IntoIterator<Item = &'a str>) -> SpherizeParams {
+        let mut out = self.clone();
+        if let Some(h) = self.hand {
+            for name in hand_links {
+                out.links
+                    .entry(name.to_string())
+                    .or_insert(h.min(self.protrusion));
+            }
+        }
+        out
+    }
+
     /// Checks every protrusion is within 2 mm – 10 cm; the message names the offending key.
     pub fn validate(&self) -> Result<(), String> {
         let ok = |v: f64| v.is_finite() && (0.002..=0.1).contains(&v);
@@ -62,6 +91,11 @@ impl SpherizeParams {
             return Err(format!(
                 "sphere protrusion must be between 0.002 and 0.1 m, got {}",
                 self.protrusion
+            ));
+        }
+        if let Some(h) = self.hand.filter(|&h| !ok(h)) {
+            return Err(format!(
+                "sphere protrusion of the hand must be between 0.002 and 0.1 m, got {h}"
             ));
         }
         for (link, v) in &self.links {
@@ -476,6 +510,36 @@ fn bounding_sphere(centers: &[[f64; 3]], radii: &[f64]) -> Option<([f64; 3], f64
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    /// The hand's bound goes to the hand's links only; a link named on its own keeps its
+    /// value, and the hand is never looser than the rest; out-of-range values are refused.
+    #[test]
+    fn the_hand_bound_applies_to_the_hand_links() {
+        let params = SpherizeParams {
+            protrusion: 0.01,
+            links: [("finger_b".to_string(), 0.003)].into(),
+            hand: Some(0.004),
+        };
+        let p = params.with_hand(["palm", "finger_b"]);
+        assert_eq!(p.protrusion_of("palm"), 0.004);
+        assert_eq!(p.protrusion_of("finger_b"), 0.003);
+        assert_eq!(p.protrusion_of("forearm"), 0.01);
+        let tight = SpherizeParams {
+            protrusion: 0.003,
+            ..params.clone()
+        };
+        assert_eq!(tight.with_hand(["palm"]).protrusion_of("palm"), 0.003);
+        let none = SpherizeParams {
+            hand: None,
+            ..params.clone()
+        };
+        assert_eq!(none.with_hand(["palm"]).protrusion_of("palm"), 0.01);
+        let bad = SpherizeParams {
+            hand: Some(0.0005),
+            ..params
+        };
+        assert!(bad.validate().unwrap_err().contains("hand"));
+    }
 
     proptest! {
         /// The bound holds every ball, is no larger than the ball about the box's middle, and
