@@ -85,6 +85,21 @@ fn a_mesh_robot_loads_from_every_format() {
     std::fs::remove_dir_all(&bot.packages).ok();
 }
 
+/// Each link with geometry: its index and its spheres' measured protrusion (their coverage of
+/// the geometry asserted whole).
+fn link_protrusions(robot: &Robot) -> Vec<(usize, f64)> {
+    let with_geometry = robot.links().iter().enumerate();
+    with_geometry
+        .filter(|(_, link)| !link.collision.is_empty())
+        .map(|(i, link)| {
+            let spheres: Vec<_> = robot.spheres().link_spheres(i).collect();
+            let q = measure(&link.collision, &spheres, 3000, 1);
+            assert_eq!(q.coverage, 1.0, "{}: {q:?}", link.name);
+            (i, q.protrusion)
+        })
+        .collect()
+}
+
 #[test]
 fn fitted_spheres_cover_the_meshes_within_the_protrusion() {
     let bot = testbot::write("spheres");
@@ -95,14 +110,8 @@ fn fitted_spheres_cover_the_meshes_within_the_protrusion() {
         }
         .load()
         .unwrap();
-        for (i, link) in robot.links().iter().enumerate() {
-            if link.collision.is_empty() {
-                continue;
-            }
-            let spheres: Vec<_> = robot.spheres().link_spheres(i).collect();
-            let q = measure(&link.collision, &spheres, 3000, 1);
-            assert_eq!(q.coverage, 1.0, "{}: {q:?}", link.name);
-            assert!(q.protrusion <= protrusion + 1e-6, "{}: {q:?}", link.name);
+        for (i, p) in link_protrusions(&robot) {
+            assert!(p <= protrusion + 1e-6, "{}: {p}", robot.links()[i].name);
         }
     }
     // A tighter bound on the hand (the tip link and the links below it) applies there only.
@@ -116,21 +125,15 @@ fn fitted_spheres_cover_the_meshes_within_the_protrusion() {
     let hand: Vec<usize> = robot.hand_links().collect();
     assert!(hand.contains(&robot.tip()) && hand.len() < robot.links().len());
     let mut coarse_elsewhere = false;
-    for (i, link) in robot.links().iter().enumerate() {
-        if link.collision.is_empty() {
-            continue;
-        }
-        let spheres: Vec<_> = robot.spheres().link_spheres(i).collect();
-        let q = measure(&link.collision, &spheres, 3000, 1);
-        assert_eq!(q.coverage, 1.0, "{}: {q:?}", link.name);
+    for (i, p) in link_protrusions(&robot) {
         if hand.contains(&i) {
             assert!(
-                q.protrusion <= 0.005 + 1e-6,
-                "hand link {}: {q:?}",
-                link.name
+                p <= 0.005 + 1e-6,
+                "hand link {}: {p}",
+                robot.links()[i].name
             );
         } else {
-            coarse_elsewhere |= q.protrusion > 0.01;
+            coarse_elsewhere |= p > 0.01;
         }
     }
     assert!(coarse_elsewhere, "the arm's links kept the 2 cm bound");
