@@ -140,7 +140,7 @@ pub struct RobotArgs {
     /// How far fitted spheres may stick out of the robot's geometry, metres [default: the robot file's, else 0.01].
     #[arg(long)]
     pub sphere_protrusion: Option<f64>,
-    /// Sphere protrusion on the hand: the group's tip link and the links below it, metres [default: the robot file's, else 0.004].
+    /// Sphere protrusion on the hand: the group's tip link and the links below it, metres [default: the robot file's, else as the rest].
     #[arg(long)]
     pub sphere_protrusion_hand: Option<f64>,
     /// MoveIt joint_limits.yaml: velocity, acceleration and jerk limits per joint (over the URDF's).

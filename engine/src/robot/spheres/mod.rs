@@ -36,30 +36,22 @@ pub struct SpherizeParams {
     #[serde(default)]
     pub links: std::collections::BTreeMap<String, f64>,
     /// Protrusion on the hand: the group's tip link and every link below it (the gripper and
-    /// its fingers), which reach into shelves and between objects (default
-    /// [`DEFAULT_HAND_PROTRUSION`]; `None`: as the rest). A link named in `links` keeps its
-    /// own, and the hand is never looser than `protrusion`.
-    #[serde(default = "default_hand")]
+    /// its fingers), which reach into shelves and between objects; `None` (the default): as
+    /// the rest. A link named in `links` keeps its own, and the hand is never looser than
+    /// `protrusion`.
+    #[serde(default)]
     pub hand: Option<f64>,
 }
 
 /// Default protrusion: 1 cm.
 pub const DEFAULT_PROTRUSION: f64 = 0.01;
 
-/// Default protrusion on the hand: 4 mm (a 1 cm bound makes fingers 1–2 cm thick nearly
-/// twice as thick, and the narrow slots of a shelf unreachable).
-pub const DEFAULT_HAND_PROTRUSION: f64 = 0.004;
-
-fn default_hand() -> Option<f64> {
-    Some(DEFAULT_HAND_PROTRUSION)
-}
-
 impl Default for SpherizeParams {
     fn default() -> Self {
         Self {
             protrusion: DEFAULT_PROTRUSION,
             links: Default::default(),
-            hand: default_hand(),
+            hand: None,
         }
     }
 }
