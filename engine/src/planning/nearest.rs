@@ -1,9 +1,11 @@
 //! Nearest-neighbour search over a growing set of configurations: a tree of buckets with
 //! tight bounding boxes, built incrementally.
 //!
-//! A leaf holds up to [`LEAF`] points, stored joint-major (structure of arrays) so the
-//! distances of a whole leaf are computed in vector lanes (AVX2 when the CPU has it, chosen
-//! at run time; the same arithmetic, no FMA, so both paths give the same answer). A full leaf
+//! A leaf holds up to [`LEAF`] points in `f32`, stored joint-major (structure of arrays) so
+//! the distances of a whole leaf are computed in vector lanes (AVX2 when the CPU has it, chosen
+//! at run time; the same arithmetic, no FMA, so both paths give the same answer); the exact
+//! coordinates, read for the answer's distance and for splits, stay in the order added, so a
+//! new leaf zeroes only its lanes and a split moves row numbers. A full leaf
 //! splits at the median of its widest joint. Every node keeps the bounding box of the points
 //! below it, and a query visits nodes nearest box first, skipping any box farther than the
 //! best point found. Continuous joints are stored wrapped into [-π, π) and their boxes are
@@ -49,12 +51,16 @@ pub struct NearestIndex {
     /// Per node: box corners, `dof` values each (continuous joints wrapped).
     lo: Vec<f64>,
     hi: Vec<f64>,
-    /// Per leaf: `dof × SLOTS` coordinates, joint-major (exact, for splits and answers).
-    coords: Vec<f64>,
-    /// The same in `f32`, scanned by queries (eight lanes per vector).
-    lanes: Vec<f32>,
-    /// Per leaf: `SLOTS` point numbers.
+    /// Per point, in the order added: its coordinates, wrapped (exact, for splits and
+    /// answers), `dof` values each; appended, so a new leaf costs no zeroing of them.
+    points: Vec<f64>,
+    /// Per point, in the order added: its number as given to [`NearestIndex::insert`].
     ids: Vec<u32>,
+    /// Per leaf: `dof × SLOTS` coordinates in `f32`, joint-major, scanned by queries (eight
+    /// lanes per vector).
+    lanes: Vec<f32>,
+    /// Per leaf: `SLOTS` rows of `points`, one per slot.
+    rows: Vec<u32>,
     /// Per leaf: points held.
     len: Vec<u32>,
     /// Query stack (node, lower bound of its distance²), kept between queries.
@@ -83,9 +89,10 @@ impl NearestIndex {
             split: Vec::with_capacity(16),
             lo: Vec::with_capacity(16 * dof),
             hi: Vec::with_capacity(16 * dof),
-            coords: Vec::with_capacity(2 * SLOTS * dof),
+            points: Vec::with_capacity(256 * dof),
+            ids: Vec::with_capacity(256),
             lanes: Vec::with_capacity(2 * SLOTS * dof),
-            ids: Vec::with_capacity(2 * SLOTS),
+            rows: Vec::with_capacity(2 * SLOTS),
             len: Vec::with_capacity(2),
             stack: Vec::with_capacity(64),
             target: vec![0.0; dof],
@@ -120,13 +127,16 @@ impl NearestIndex {
             self.new_leaf(None);
             self.push_node([NONE, 0], &q);
         }
+        let row = self.ids.len() as u32;
+        self.points.extend_from_slice(&q);
+        self.ids.push(id);
         let mut at = 0usize;
         loop {
             self.grow_box(at, &q);
             let [a, b] = self.children[at];
             if a == NONE {
                 let leaf = b as usize;
-                self.put(leaf, &q, id);
+                self.put(leaf, &q, row);
                 if self.len[leaf] as usize == SLOTS {
                     self.split(at);
                 }
@@ -219,7 +229,8 @@ impl NearestIndex {
             }
             _ => self.walk(),
         };
-        let id = self.ids[leaf * SLOTS + k];
+        let row = self.rows[leaf * SLOTS + k] as usize;
+        let id = self.ids[row];
         if let Some(&r) = radius.get(id as usize) {
             if f64::from(approx) > r * r * (1.0 + APPROX_SLACK) + APPROX_SLACK {
                 return Some((id, None));
@@ -229,9 +240,9 @@ impl NearestIndex {
         #[cfg(target_arch = "x86_64")]
         if AVX2 && (DOF == 6 || DOF == 7 || DOF == 8) {
             // SAFETY: `AVX2` only inside `nearest_avx2`, which the CPU can run.
-            return Some((id, Some(unsafe { self.exact_dist2_avx2::<DOF>(leaf, k) })));
+            return Some((id, Some(unsafe { self.exact_dist2_avx2::<DOF>(row) })));
         }
-        Some((id, Some(self.exact_dist2::<DOF>(leaf, k))))
+        Some((id, Some(self.exact_dist2::<DOF>(row))))
     }
 
     /// Holds `p` as the query: wrapped, and in `f32`. Values already inside their range
@@ -337,42 +348,38 @@ impl NearestIndex {
                 l
             }
             None => {
-                self.coords
-                    .resize(self.coords.len() + SLOTS * self.dof, 0.0);
                 self.lanes
                     .resize(self.lanes.len() + SLOTS * self.dof, EMPTY);
-                self.ids.resize(self.ids.len() + SLOTS, NONE);
+                self.rows.resize(self.rows.len() + SLOTS, 0);
                 self.len.push(0);
                 self.len.len() - 1
             }
         }
     }
 
-    fn put(&mut self, leaf: usize, p: &[f64], id: u32) {
+    /// Puts row `row` of `points` (`p`) in the next slot of `leaf`.
+    fn put(&mut self, leaf: usize, p: &[f64], row: u32) {
         let k = self.len[leaf] as usize;
         let base = leaf * SLOTS * self.dof;
         for (j, &v) in p.iter().enumerate() {
-            self.coords[base + j * SLOTS + k] = v;
             self.lanes[base + j * SLOTS + k] = v as f32;
         }
-        self.ids[leaf * SLOTS + k] = id;
+        self.rows[leaf * SLOTS + k] = row;
         self.len[leaf] += 1;
     }
 
-    /// Squared distance from the query to point `k` of `leaf`, in `f64`, over `DOF` joints
+    /// Squared distance from the query to the point in row `row`, in `f64`, over `DOF` joints
     /// (all when 0). Both are wrapped, so on a continuous joint the way around is |d| or
     /// 2π − |d| (`period` is infinite on the others): what [`wrap_angle`] of the difference
     /// gives, squared.
     #[inline(always)]
-    fn exact_dist2<const DOF: usize>(&self, leaf: usize, k: usize) -> f64 {
+    fn exact_dist2<const DOF: usize>(&self, row: usize) -> f64 {
         let dof = if DOF == 0 { self.dof } else { DOF };
-        // `k` is a slot (below `SLOTS`); said so, the loop's reads need no bounds checks.
-        let k = k.min(SLOTS - 1);
-        let point = &self.coords[leaf * SLOTS * dof..][..SLOTS * dof];
+        let point = &self.points[row * dof..][..dof];
         let (q, period) = (&self.target[..dof], &self.period[..dof]);
         let mut d2 = 0.0;
         for j in 0..dof {
-            let d = (q[j] - point[j * SLOTS + k]).abs();
+            let d = (q[j] - point[j]).abs();
             let around = period[j] - d;
             let d = if around < d { around } else { d };
             d2 += d * d;
@@ -386,19 +393,16 @@ impl NearestIndex {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     #[inline]
-    unsafe fn exact_dist2_avx2<const DOF: usize>(&self, leaf: usize, k: usize) -> f64 {
+    unsafe fn exact_dist2_avx2<const DOF: usize>(&self, row: usize) -> f64 {
         use std::arch::x86_64::*;
         const { assert!(DOF <= 8) };
-        let k = k.min(SLOTS - 1);
-        let point = &self.coords[leaf * SLOTS * DOF..][..SLOTS * DOF];
+        let point = &self.points[row * DOF..][..DOF];
         let (q, period) = (&self.target[..DOF], &self.period[..DOF]);
         // Joints past DOF hold zeros: their terms are zero and not summed.
         let (mut p8, mut q8, mut t8) = ([0.0f64; 8], [0.0f64; 8], [f64::INFINITY; 8]);
-        for j in 0..DOF {
-            p8[j] = point[j * SLOTS + k];
-            q8[j] = q[j];
-            t8[j] = period[j];
-        }
+        p8[..DOF].copy_from_slice(point);
+        q8[..DOF].copy_from_slice(q);
+        t8[..DOF].copy_from_slice(period);
         let sign = _mm256_set1_pd(-0.0);
         let terms = |at: usize| {
             let d = _mm256_sub_pd(
@@ -421,8 +425,9 @@ impl NearestIndex {
         d2
     }
 
+    /// Coordinate `j` of the point in slot `k` of `leaf`.
     fn coord(&self, leaf: usize, j: usize, k: usize) -> f64 {
-        self.coords[leaf * SLOTS * self.dof + j * SLOTS + k]
+        self.points[self.rows[leaf * SLOTS + k] as usize * self.dof + j]
     }
 
     /// Splits the full leaf of node `at` at the median of its widest joint into two leaves.
@@ -452,33 +457,31 @@ impl NearestIndex {
             self.len[leaf] -= 1;
             return;
         }
-        // Copy the points out, then refill this leaf with the left side and a new one with
+        // The rows in order, then this leaf refilled with the left side and a new one with
         // the right side.
-        let points: Vec<(Vec<f64>, u32)> = order
-            .iter()
-            .map(|&(_, k)| {
-                let k = k as usize;
-                let p = (0..dof).map(|j| self.coord(leaf, j, k)).collect();
-                (p, self.ids[leaf * SLOTS + k])
-            })
-            .collect();
+        let mut rows = [0u32; SLOTS];
+        for (r, &(_, k)) in rows.iter_mut().zip(&order) {
+            *r = self.rows[leaf * SLOTS + k as usize];
+        }
         let left = self.new_leaf(Some(leaf));
         let right = self.new_leaf(None);
         let mut nodes = [NONE; 2];
+        let mut p = vec![0.0; dof];
         for (side, (l, range)) in [(left, 0..cut), (right, cut..SLOTS)]
             .into_iter()
             .enumerate()
         {
-            let first = &points[range.start].0;
-            let node = self.push_node([NONE, l as u32], first);
-            for (p, id) in &points[range] {
-                self.put(l, p, *id);
-                self.grow_box(node, p);
+            let mut node = None;
+            for &row in &rows[range] {
+                p.copy_from_slice(&self.points[row as usize * dof..][..dof]);
+                let at = *node.get_or_insert_with(|| self.push_node([NONE, l as u32], &p));
+                self.put(l, &p, row);
+                self.grow_box(at, &p);
             }
-            nodes[side] = node as u32;
+            nodes[side] = node.expect("both sides hold points") as u32;
         }
         self.children[at] = nodes;
-        self.split[at] = (dim as u32, points[cut].0[dim]);
+        self.split[at] = (dim as u32, order[cut].0);
     }
 
     /// The least squared distance (in `f32`) from `q` (wrapped) to a point of `leaf`, and the
