@@ -6,9 +6,11 @@ iterations=` lines), VAMP.txt the output of `vamp_problems_peer.py` on the same 
 set= index= solved= iterations= tree_nodes= us=`). Sets are matched by name without the
 `_fetch`/`_panda` suffix. Prints, per set, one line:
   RESULT per_problem_vs_vamp set= common= ember_median_iterations= vamp_median_iterations=
-      ember_ns_per_iteration= vamp_ns_per_iteration=
+      ember_ns_per_iteration= vamp_ns_per_iteration= ember_median_ms= vamp_median_ms= ratio=
 (ns per iteration: total time over total iterations on the common problems; Ember's time is its
-planning time, VAMP's its planner call's).
+planning time, VAMP's its planner call's; the medians and their ratio, Ember / VAMP, are over the
+common problems only, where `side_by_side.sh` takes each planner's median over the problems it
+solves).
 """
 import re
 import statistics
@@ -40,11 +42,14 @@ def main():
         e = [ember[name][k] for k in common]
         v = [vamp[name][k] for k in common]
         per = lambda runs: sum(ns for _, ns in runs) / sum(it for it, _ in runs)
+        ems = statistics.median(ns for _, ns in e) / 1e6
+        vms = statistics.median(ns for _, ns in v) / 1e6
         print(
             f"RESULT per_problem_vs_vamp set={name} common={len(common)} "
             f"ember_median_iterations={statistics.median(i for i, _ in e):.0f} "
             f"vamp_median_iterations={statistics.median(i for i, _ in v):.0f} "
-            f"ember_ns_per_iteration={per(e):.1f} vamp_ns_per_iteration={per(v):.1f}"
+            f"ember_ns_per_iteration={per(e):.1f} vamp_ns_per_iteration={per(v):.1f} "
+            f"ember_median_ms={ems:.4f} vamp_median_ms={vms:.4f} ratio={ems / vms:.3f}"
         )
 
 
