@@ -201,16 +201,12 @@ impl Robot {
 
     /// The hand: the tip link and every link below it (a gripper and its fingers).
     pub fn hand_links(&self) -> impl Iterator<Item = usize> + '_ {
-        (0..self.links.len()).filter(|&i| {
-            let mut at = Some(i);
-            while let Some(l) = at {
-                if l == self.tip {
-                    return true;
-                }
-                at = self.links[l].parent;
-            }
-            false
-        })
+        (0..self.links.len()).filter(|&i| self.ancestry(i).any(|l| l == self.tip))
+    }
+
+    /// Link `link`, then its parent, and so on up to the root.
+    pub fn ancestry(&self, link: usize) -> impl Iterator<Item = usize> + '_ {
+        std::iter::successors(Some(link), |&l| self.links[l].parent)
     }
 
     /// A named configuration (`stow`, `ready`, ...).
@@ -234,17 +230,8 @@ impl Robot {
     /// True when the link moves with some planning-group joint (false for the base and
     /// everything rigidly attached to it).
     pub fn link_moves(&self, link: usize) -> bool {
-        let mut i = link;
-        loop {
-            let l = &self.links[i];
-            if !matches!(l.motion, Motion::Fixed) {
-                return true;
-            }
-            match l.parent {
-                Some(p) => i = p,
-                None => return false,
-            }
-        }
+        self.ancestry(link)
+            .any(|l| !matches!(self.links[l].motion, Motion::Fixed))
     }
 
     /// The sphere model used by the fast checker.

@@ -73,13 +73,9 @@ fn compute(robot: &Robot, samples: usize) -> Vec<(String, String, String)> {
     let mut reason: Vec<Vec<Option<&'static str>>> = vec![vec![None; links.len()]; links.len()];
     // Adjacent: nearest ancestors with geometry.
     for &l in &with_geometry {
-        let mut p = links[l].parent;
-        while let Some(i) = p {
-            if !links[i].collision.is_empty() {
-                reason[l.min(i)][l.max(i)] = Some("Adjacent");
-                break;
-            }
-            p = links[i].parent;
+        let mut above = robot.ancestry(l).skip(1);
+        if let Some(i) = above.find(|&i| !links[i].collision.is_empty()) {
+            reason[l.min(i)][l.max(i)] = Some("Adjacent");
         }
     }
     let pairs: Vec<(usize, usize)> = with_geometry
