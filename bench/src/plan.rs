@@ -26,7 +26,7 @@
 //! the paper. `total_median_ms` is over the solved problems: planning, simplification and
 //! validation, what a caller waits for. `--per-problem` also prints, as each problem ends,
 //! `PROBLEM set= index= solved=1 ms= total_ms= search_ms= iterations= nodes= exact_fallbacks=
-//! raw_length= length= waypoints=` (or
+//! raw_length= length= waypoints= retreat_states=` (or
 //! `solved=0 outcome=start_in_collision|goal_in_collision|timeout|failed`).
 
 use ember_engine::planning::PlanError;
@@ -271,7 +271,7 @@ impl Tally {
                 self.length.push(res.stats.length_after);
                 format!(
                     "solved=1 ms={ms:.3} total_ms={:.3} search_ms={:.3} iterations={} nodes={} exact_fallbacks={} \
-                     raw_length={:.4} length={:.4} waypoints={}",
+                     raw_length={:.4} length={:.4} waypoints={} retreat_states={}",
                     total * 1e3,
                     res.stats.search_s * 1e3,
                     res.stats.iterations,
@@ -279,7 +279,8 @@ impl Tally {
                     res.stats.exact_fallbacks,
                     res.stats.length_before,
                     res.stats.length_after,
-                    res.path.len()
+                    res.path.len(),
+                    res.stats.retreat_states
                 )
             }
             Err(e) => {
@@ -379,6 +380,7 @@ struct Split {
     remembered: u64,
     screened: u64,
     screened_out: u64,
+    retreat_states: u64,
 }
 
 impl Split {
@@ -395,6 +397,7 @@ impl Split {
         self.remembered += s.remembered_batches;
         self.screened += s.screened;
         self.screened_out += s.screened_out;
+        self.retreat_states += s.retreat_states;
     }
 
     /// Collision-checking time per configuration checked, ns.
@@ -412,7 +415,7 @@ impl Split {
         format!(
             "sample_pct={:.1} check_pct={:.1} neighbour_pct={:.1} other_pct={:.1} \
              check_ns_per_config={:.1} configs_per_iteration={:.1} exact_fallbacks={} \
-             remembered_pct={:.1} screened={} screened_out_pct={:.1}",
+             remembered_pct={:.1} screened={} screened_out_pct={:.1} retreat_states={}",
             pct(self.sample_s),
             pct(self.check_s),
             pct(self.neighbour_s),
@@ -422,7 +425,8 @@ impl Split {
             self.fallbacks,
             100.0 * self.remembered as f64 / self.batches.max(1) as f64,
             self.screened,
-            100.0 * self.screened_out as f64 / self.screened.max(1) as f64
+            100.0 * self.screened_out as f64 / self.screened.max(1) as f64,
+            self.retreat_states
         )
     }
 }

@@ -33,27 +33,75 @@ impl Default for IkParams {
 
 /// The chain of links from the root to `link` and, per planning variable on it, the link whose
 /// joint it drives.
-fn chain(robot: &Robot, link: usize) -> Vec<(usize, usize)> {
-    let mut out = Vec::new();
-    let mut i = link;
-    loop {
-        let l = &robot.links()[i];
-        match l.motion {
+pub(crate) fn chain(robot: &Robot, link: usize) -> Vec<(usize, usize)> {
+    robot
+        .ancestry(link)
+        .filter_map(|i| match robot.links()[i].motion {
             Motion::Revolute { variable, .. } | Motion::Prismatic { variable, .. } => {
-                out.push((i, variable))
+                Some((i, variable))
+            }
+            Motion::Fixed => None,
+        })
+        .collect()
+}
+
+/// The geometric Jacobian of `link`'s origin at `poses` (forward kinematics of the chain
+/// `joints`, see [`chain`]): per planning variable, its column (linear velocity, then angular
+/// velocity, the latter left zero unless `rotation`).
+pub(crate) fn jacobian(
+    robot: &Robot,
+    poses: &[Pose],
+    joints: &[(usize, usize)],
+    link: usize,
+    rotation: bool,
+    jac: &mut [Vector6<f64>],
+) {
+    let p = poses[link].translation.vector;
+    jac.fill(Vector6::zeros());
+    for &(li, var) in joints {
+        let frame = &poses[li];
+        let column = &mut jac[var];
+        match robot.links()[li].motion {
+            Motion::Revolute { axis, .. } => {
+                let a = frame.rotation * axis.into_inner();
+                let v = a.cross(&(p - frame.translation.vector));
+                column.fixed_rows_mut::<3>(0).copy_from(&v);
+                if rotation {
+                    column.fixed_rows_mut::<3>(3).copy_from(&a);
+                }
+            }
+            Motion::Prismatic { axis, .. } => {
+                let a = frame.rotation * axis.into_inner();
+                column.fixed_rows_mut::<3>(0).copy_from(&a);
             }
             Motion::Fixed => {}
         }
-        match l.parent {
-            Some(p) => i = p,
-            None => break,
-        }
     }
-    out
+}
+
+/// The damped least-squares step `dq = Jᵀ (J Jᵀ + λ² I)⁻¹ e` for the Jacobian's columns `jac`
+/// and the error `e`, written into `dq`; false when the system cannot be solved.
+pub(crate) fn damped_step(
+    jac: &[Vector6<f64>],
+    e: &Vector6<f64>,
+    lambda2: f64,
+    dq: &mut [f64],
+) -> bool {
+    let mut jjt = Matrix6::identity() * lambda2;
+    for c in jac {
+        jjt.ger(1.0, c, c, 1.0);
+    }
+    let Some(y) = jjt.cholesky().map(|c| c.solve(e)) else {
+        return false;
+    };
+    for (d, c) in dq.iter_mut().zip(jac) {
+        *d = c.dot(&y);
+    }
+    true
 }
 
 /// Position and rotation error (target − current), in the base frame.
-fn error(current: &Pose, target: &Pose) -> (Vector3<f64>, Vector3<f64>) {
+pub(crate) fn error(current: &Pose, target: &Pose) -> (Vector3<f64>, Vector3<f64>) {
     let dp = target.translation.vector - current.translation.vector;
     let dr = (target.rotation * current.rotation.inverse()).scaled_axis();
     (dp, dr)
@@ -105,43 +153,14 @@ pub fn solve<'a>(
                 }
                 break;
             }
-            // Geometric Jacobian of the link origin.
-            let p = poses[link].translation.vector;
-            jac.fill(Vector6::zeros());
-            for &(li, var) in &joints {
-                let frame = &poses[li];
-                let column = &mut jac[var];
-                match robot.links()[li].motion {
-                    Motion::Revolute { axis, .. } => {
-                        let a = frame.rotation * axis.into_inner();
-                        let v = a.cross(&(p - frame.translation.vector));
-                        column.fixed_rows_mut::<3>(0).copy_from(&v);
-                        if use_rotation {
-                            column.fixed_rows_mut::<3>(3).copy_from(&a);
-                        }
-                    }
-                    Motion::Prismatic { axis, .. } => {
-                        let a = frame.rotation * axis.into_inner();
-                        column.fixed_rows_mut::<3>(0).copy_from(&a);
-                    }
-                    Motion::Fixed => {}
-                }
-            }
+            jacobian(robot, &poses, &joints, link, use_rotation, &mut jac);
             let mut e = Vector6::zeros();
             e.fixed_rows_mut::<3>(0).copy_from(&dp);
             if use_rotation {
                 e.fixed_rows_mut::<3>(3).copy_from(&dr);
             }
-            // The damped step: dq = Jᵀ (J Jᵀ + λ² I)⁻¹ e, on the stack.
-            let mut jjt = Matrix6::identity() * lambda2;
-            for c in &jac {
-                jjt.ger(1.0, c, c, 1.0);
-            }
-            let Some(y) = jjt.cholesky().map(|c| c.solve(&e)) else {
+            if !damped_step(&jac, &e, lambda2, &mut dq) {
                 break;
-            };
-            for (d, c) in dq.iter_mut().zip(&jac) {
-                *d = c.dot(&y);
             }
             let n = dq.iter().map(|d| d * d).sum::<f64>().sqrt();
             let scale = if n > 0.5 { 0.5 / n } else { 1.0 };

@@ -14,6 +14,7 @@
 
 pub mod ik;
 pub mod nearest;
+mod retreat;
 mod rng;
 pub mod rrt_connect;
 pub mod sampler;
@@ -242,6 +243,9 @@ pub struct PlanStats {
     pub validate_s: f64,
     /// Configurations the exact checker decided near anchors during the search.
     pub exact_fallbacks: u64,
+    /// States the search added by retreating from stuck starts or goals (see
+    /// [`rrt_connect`]'s module docs).
+    pub retreat_states: u64,
     /// Extensions whose end states were screened together while the search was stuck.
     pub screened: u64,
     /// Of those, the ones the screen refused (a contact found) without a check of their own.

@@ -9,9 +9,12 @@
 //! A start or goal that no full step leaves (a gripper deep in a shelf) takes steps of
 //! [`ROOT_STEP`] of the range once an extension from it has failed: the search grows the
 //! smaller tree, so a one-node goal tree that cannot leave would otherwise take every
-//! iteration (what stalled the bookshelves at ranges of 1.0 and more before).
+//! iteration (what stalled the bookshelves at ranges of 1.0 and more before). And when a tree
+//! is still stuck at its roots after a few hundred iterations ([`RETREAT_AFTER`]), the search
+//! backs its tip out of them in straight lines ([`Retreat`]) and grows on from there.
 
 use super::nearest::NearestIndex;
+use super::retreat::Retreat;
 use super::validity::Validity;
 use super::{PlanError, PlanStats, PlannerParams, PlannerRng, Sampler};
 use crate::robot::Robot;
@@ -34,6 +37,8 @@ struct Tree {
     /// Per root (the tree's first nodes: the start, or the goals): true once an extension
     /// from it has failed (see the module docs).
     root_failed: Vec<bool>,
+    /// True once the search has retreated from the roots (see [`Retreat`]).
+    retreated: bool,
 }
 
 impl Tree {
@@ -45,6 +50,7 @@ impl Tree {
             index: NearestIndex::new(continuous),
             domain: Vec::with_capacity(256),
             root_failed: Vec::new(),
+            retreated: false,
         }
     }
 
@@ -143,7 +149,17 @@ struct Search<'c, 'a, 's> {
     /// True on the iterations whose sampling, neighbour queries and checks are timed (see
     /// [`SPLIT_EVERY`]).
     timed: bool,
+    /// The retreats' working state, made when a root first fails.
+    retreat: Option<Retreat>,
 }
+
+/// The search retreats from the roots of the tree it grows (see [`Retreat`]) once it has
+/// taken this many iterations, this many extensions in a row have failed, and the tree holds
+/// fewer than this many nodes per root: its start or goals are confined. (Measured on the
+/// MotionBenchMaker Fetch sets: from 256 iterations the confined goals of bookshelf_thin lose
+/// ~4× their iterations; box, whose trees have grown past a few nodes by then, is left as it
+/// was.)
+const RETREAT_AFTER: (u64, u64, usize) = (256, 16, 4);
 
 /// Sampling, neighbour queries and checks are timed on one iteration in this many and scaled
 /// up: they take a few hundred nanoseconds, and reading the clock around each would add a
@@ -339,6 +355,26 @@ impl Search<'_, '_, '_> {
             } else if r.is_finite() {
                 *r *= 1.0 + dd.alpha;
             }
+        }
+    }
+
+    /// Adds the retreats from each root of `tree` to it (see [`Retreat`]), once per tree.
+    #[cold]
+    #[inline(never)]
+    fn retreat(&mut self, tree: &mut Tree) {
+        tree.retreated = true;
+        let robot = self.robot;
+        let retreat = self.retreat.get_or_insert_with(|| Retreat::new(robot));
+        for root in 0..tree.root_failed.len() {
+            let q = tree.node(root).to_vec();
+            let mut parent = root as u32;
+            retreat.run(self.checker, &q, self.range, |state, first| {
+                if first {
+                    parent = root as u32;
+                }
+                parent = tree.add(state, parent) as u32;
+                self.stats.retreat_states += 1;
+            });
         }
     }
 
@@ -553,6 +589,7 @@ pub(crate) fn search(
             ..Phases::default()
         },
         timed: false,
+        retreat: None,
     };
     let mut sample = vec![0.0; dof];
     let mut target = vec![0.0; dof];
@@ -591,6 +628,13 @@ pub(crate) fn search(
         } else {
             (&mut goal_tree, &mut start_tree)
         };
+        if !a.retreated
+            && iterations >= RETREAT_AFTER.0
+            && failures >= RETREAT_AFTER.1
+            && a.len() < RETREAT_AFTER.2 * a.root_failed.len()
+        {
+            search.retreat(a);
+        }
         let new = if iterations >= STUCK_AFTER.0 && failures >= STUCK_AFTER.1 {
             search.gathered_round(
                 a,
@@ -664,6 +708,7 @@ mod tests {
             stats,
             phases: Phases::default(),
             timed: false,
+            retreat: None,
         }
     }
 

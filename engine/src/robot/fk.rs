@@ -22,6 +22,20 @@ fn joint_frame(link: &super::Link, origin: &Frame, q: &[f64]) -> Frame {
     }
 }
 
+/// The pose of `link` in its parent's frame: the joint origin moved by the joint's value.
+#[inline(always)]
+fn joint_pose(link: &super::Link, q: &[f64]) -> Pose {
+    match link.motion {
+        Motion::Fixed => link.origin,
+        Motion::Revolute { axis, variable } => {
+            link.origin * UnitQuaternion::from_axis_angle(&axis, q[variable])
+        }
+        Motion::Prismatic { axis, variable } => {
+            link.origin * Translation3::from(axis.into_inner() * q[variable])
+        }
+    }
+}
+
 impl Robot {
     /// Writes the base-frame pose of every link for configuration `q` into `poses`
     /// (indexed like [`Robot::links`]). No checks, no allocation: the planner's inner loop.
@@ -32,15 +46,21 @@ impl Robot {
         debug_assert_eq!(q.len(), self.dof());
         debug_assert_eq!(poses.len(), self.links.len());
         for (i, link) in self.links.iter().enumerate() {
-            let local = match link.motion {
-                Motion::Fixed => link.origin,
-                Motion::Revolute { axis, variable } => {
-                    link.origin * UnitQuaternion::from_axis_angle(&axis, q[variable])
-                }
-                Motion::Prismatic { axis, variable } => {
-                    link.origin * Translation3::from(axis.into_inner() * q[variable])
-                }
+            let local = joint_pose(link, q);
+            poses[i] = match link.parent {
+                None => local,
+                Some(p) => poses[p] * local,
             };
+        }
+    }
+
+    /// [`Robot::forward_kinematics`] for `links` alone (in the order of [`Robot::links`], each
+    /// link's parent among them or the root): the other slots of `poses` are left as they are.
+    #[inline]
+    pub fn forward_kinematics_of(&self, links: &[usize], q: &[f64], poses: &mut [Pose]) {
+        for &i in links {
+            let link = &self.links[i];
+            let local = joint_pose(link, q);
             poses[i] = match link.parent {
                 None => local,
                 Some(p) => poses[p] * local,
