@@ -82,16 +82,14 @@ impl Retreat {
     ) {
         let robot = checker.robot();
         let steps = (LENGTH / STEP).round() as usize;
-        for axis in 0..6 {
+        'axes: for axis in 0..6 {
             self.q.copy_from_slice(root);
             robot.forward_kinematics_of(&self.links, &self.q, &mut self.poses);
             let start = self.poses[self.tip];
             let mut d = Vector3::zeros();
             d[axis / 2] = if axis % 2 == 0 { STEP } else { -STEP };
             let d = start.rotation * d;
-            let mut k = 0;
-            while k < steps {
-                k += 1;
+            for k in 1..=steps {
                 let mut target = start;
                 target.translation.vector += d * k as f64;
                 self.prev.copy_from_slice(&self.q);
@@ -99,14 +97,11 @@ impl Retreat {
                     || robot.distance(&self.prev, &self.q) > max_step
                     || !checker.reach_valid(&self.prev, &self.q)
                 {
-                    k -= 1;
-                    break;
+                    continue 'axes;
                 }
                 add(&self.q, k == 1);
             }
-            if k == steps {
-                return;
-            }
+            return;
         }
     }
 

@@ -58,6 +58,11 @@ impl Tree {
         self.parent.len()
     }
 
+    /// Roots: the start, or the goals (the tree's first nodes).
+    fn roots(&self) -> usize {
+        self.root_failed.len()
+    }
+
     fn node(&self, i: usize) -> &[f64] {
         &self.q[i * self.dof..(i + 1) * self.dof]
     }
@@ -366,7 +371,7 @@ impl Search<'_, '_, '_> {
         tree.retreated = true;
         let robot = self.robot;
         let retreat = self.retreat.get_or_insert_with(|| Retreat::new(robot));
-        for root in 0..tree.root_failed.len() {
+        for root in 0..tree.roots() {
             let q = tree.node(root).to_vec();
             let mut parent = root as u32;
             retreat.run(self.checker, &q, self.range, |state, first| {
@@ -632,7 +637,7 @@ pub(crate) fn search(
         if !a.retreated
             && iterations >= RETREAT_AFTER.0
             && failures >= RETREAT_AFTER.1
-            && a.len() < RETREAT_AFTER.2 * a.root_failed.len()
+            && a.len() < RETREAT_AFTER.2 * a.roots()
         {
             search.retreat(a);
         }
