@@ -22,10 +22,11 @@ fn joint_frame(link: &super::Link, origin: &Frame, q: &[f64]) -> Frame {
     }
 }
 
-/// The pose of `link` in its parent's frame: the joint origin moved by the joint's value.
+/// The base-frame pose of `link` at `q`, its parent's already in `poses`: the joint origin
+/// moved by the joint's value, placed in the parent's frame.
 #[inline(always)]
-fn joint_pose(link: &super::Link, q: &[f64]) -> Pose {
-    match link.motion {
+fn link_pose(link: &super::Link, q: &[f64], poses: &[Pose]) -> Pose {
+    let local = match link.motion {
         Motion::Fixed => link.origin,
         Motion::Revolute { axis, variable } => {
             link.origin * UnitQuaternion::from_axis_angle(&axis, q[variable])
@@ -33,6 +34,10 @@ fn joint_pose(link: &super::Link, q: &[f64]) -> Pose {
         Motion::Prismatic { axis, variable } => {
             link.origin * Translation3::from(axis.into_inner() * q[variable])
         }
+    };
+    match link.parent {
+        None => local,
+        Some(p) => poses[p] * local,
     }
 }
 
@@ -46,11 +51,7 @@ impl Robot {
         debug_assert_eq!(q.len(), self.dof());
         debug_assert_eq!(poses.len(), self.links.len());
         for (i, link) in self.links.iter().enumerate() {
-            let local = joint_pose(link, q);
-            poses[i] = match link.parent {
-                None => local,
-                Some(p) => poses[p] * local,
-            };
+            poses[i] = link_pose(link, q, poses);
         }
     }
 
@@ -59,12 +60,7 @@ impl Robot {
     #[inline]
     pub fn forward_kinematics_of(&self, links: &[usize], q: &[f64], poses: &mut [Pose]) {
         for &i in links {
-            let link = &self.links[i];
-            let local = joint_pose(link, q);
-            poses[i] = match link.parent {
-                None => local,
-                Some(p) => poses[p] * local,
-            };
+            poses[i] = link_pose(&self.links[i], q, poses);
         }
     }
 
