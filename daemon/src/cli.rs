@@ -103,7 +103,7 @@ pub struct PlanArgs {
     /// Time limit in seconds (default: the request's allowed_planning_time, else 10).
     #[arg(long)]
     pub time_limit: Option<f64>,
-    /// Keep the raw path (no shortcutting).
+    /// Keep the raw path (no simplification).
     #[arg(long)]
     pub no_simplify: bool,
     /// Print the result as one JSON object.

@@ -3,7 +3,7 @@
 //! - [`sampler`]: the `Sampler` plug-in point and uniform sampling, from the planner's random
 //!   numbers ([`PlannerRng`]);
 //! - [`rrt_connect`]: bidirectional RRT over the planning group;
-//! - [`simplify`]: shortcutting and redundant-vertex removal;
+//! - [`simplify`]: redundant-vertex removal and corner cutting;
 //! - [`nearest`]: nearest-neighbour index over tree nodes;
 //! - [`ik`]: damped-least-squares inverse kinematics with restarts, collision-aware;
 //! - [`validity`]: the sphere model with an exact fallback near terminal states.
@@ -388,7 +388,7 @@ pub fn plan(
     let raw = params.simplify.then(|| path.clone());
     if params.simplify {
         let t = Instant::now();
-        simplify::simplify(&mut checker, &mut path, &mut rng);
+        simplify::simplify(&mut checker, &mut path);
         stats.simplify_s = t.elapsed().as_secs_f64();
     }
     let (after, fallbacks) = checker.stats();
