@@ -37,10 +37,9 @@ pub fn simplify(checker: &mut Validity<'_>, path: &mut Vec<Vec<f64>>) {
 
 /// Corner cutting (Chaikin's step): each interior waypoint gives way to the points a fraction
 /// of the way to its neighbours ([`CUTS`], the first whose motion between them is free).
-/// Returns whether
-/// a corner was cut. A piece of an old segment left between two kept points is checked as it
-/// is finalised; should one fail (its states differ from the segment's), the path is kept as
-/// it was.
+/// Returns whether a corner was cut. A piece of an old segment left between two kept points is
+/// checked as it is finalised; should one fail (its states differ from the segment's), the
+/// path is kept as it was.
 fn cut_corners(checker: &mut Validity<'_>, path: &mut Vec<Vec<f64>>) -> bool {
     let robot = checker.robot();
     if path.len() < 3 {
