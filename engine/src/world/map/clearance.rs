@@ -21,14 +21,15 @@
 //! share, so a snapshot holding the grids costs the next update only the bricks it rewrites.
 
 use super::{BlockKey, OccupancyMap, VoxelKey};
-use crate::collision::batch::lanes::{Mask8, F8, LANES};
+use crate::collision::batch::lanes::{has_avx2, Mask8, F8, LANES};
 use std::sync::Arc;
 
-/// Distances are stored in these fractions of a voxel.
+/// Distances are stored in these fractions of a cell where the padding allows (up to 15
+/// cells: the default 2 cm and 1 cm voxels); a grid padded farther (finer voxels) stores
+/// coarser fractions, so that one byte reaches its padding (see [`Level::steps`]).
 const STEPS: f64 = 16.0;
 
-/// A stored distance: one byte, so the grids are half as large in the caches (saturating at
-/// 15.9 cells: the padding at the default 2 cm and 1 cm voxels).
+/// A stored distance: one byte, so the grids are half as large in the caches.
 type Cell = u8;
 
 /// Slack of the `f32` queries, metres: far above their rounding at robot scale.
@@ -86,6 +87,9 @@ struct Level {
     far: Arc<Brick>,
     /// Half diagonal of a cell, metres.
     half_diagonal: f64,
+    /// Stored units per cell: [`STEPS`], or fewer where the padding is more than a byte of
+    /// sixteenths holds.
+    steps: f64,
     /// Padding in cells: distances saturate here, and the grid reaches this far past the cover.
     pad: i32,
     /// The figures [`Clearance::unclear8`] needs, in `f32`.
@@ -146,7 +150,7 @@ impl Clearance {
         let coarse = Level::empty(4.0 * res, COARSE_REACH * pad, cover)?;
         let mut c = Clearance {
             // Balls the fine grid can clear: within its saturation.
-            fine_radius: (fine.cap() as f64 / STEPS * res).min(pad) - fine.half_diagonal,
+            fine_radius: (fine.cap() as f64 * fine.unit()).min(pad) - fine.half_diagonal,
             fine,
             coarse,
             cover,
@@ -280,7 +284,7 @@ impl Clearance {
                     Some(false)
                 } else if !fine {
                     None
-                } else if d + off + level.res / STEPS + F64_SLACK < r {
+                } else if d + off + level.unit() + F64_SLACK < r {
                     Some(true)
                 } else {
                     self.refine(p, r)
@@ -438,8 +442,11 @@ impl Level {
     /// A grid of cells of edge `res` over the cells `[lo, hi]` grown by `pad` metres, every
     /// cell saturated; `None` past [`MAX_CELLS`].
     fn empty(res: f64, pad: f64, (lo, hi): (VoxelKey, VoxelKey)) -> Option<Self> {
-        let pad = (pad / res).ceil().clamp(1.0, 2000.0) as i32;
-        let cap = (pad as f64 * STEPS).min(Cell::MAX as f64) as Cell;
+        let pad = (pad / res).ceil().clamp(1.0, MAX_PAD as f64);
+        // As fine as one byte allows up to the padding.
+        let steps = (Cell::MAX as f64 / pad).floor().min(STEPS);
+        let cap = (pad * steps) as Cell;
+        let pad = pad as i32;
         let mut level = Level {
             res,
             inv_res: 1.0 / res,
@@ -449,6 +456,7 @@ impl Level {
             bricks: Vec::new(),
             far: Arc::new([cap; BRICK * BRICK * BRICK]),
             half_diagonal: res * 3f64.sqrt() / 2.0,
+            steps,
             pad,
             lanes: LaneGrid::default(),
         };
@@ -458,6 +466,11 @@ impl Level {
     /// Saturated distance in stored units.
     fn cap(&self) -> Cell {
         self.far[0]
+    }
+
+    /// A stored unit, metres.
+    fn unit(&self) -> f64 {
+        self.res / self.steps
     }
 
     /// Cells in the grid.
@@ -519,7 +532,7 @@ impl Level {
                     lo: new_lo.map(|v| v as f32),
                     last: dims.map(|d| (d - 1) as f32),
                     bdims: bdims.map(|d| d as u32),
-                    step: (self.res / STEPS) as f32,
+                    step: self.unit() as f32,
                     reach: F32_SLACK,
                 };
                 true
@@ -555,7 +568,7 @@ impl Level {
         keys.clear();
         seeds((wlo, whi), keys);
         let wdims = [0, 1, 2].map(|a| (whi[a] - wlo[a] + 1) as usize);
-        let d = distance_transform(keys, wlo, wdims, self.pad as f64);
+        let d = distance_transform(keys, wlo, wdims, self.pad, self.steps);
         let cap = self.cap();
         // Brick by brick over the region.
         let (clo, chi) = (
@@ -612,7 +625,7 @@ impl Level {
         if (0..3).any(|a| cell[a] < 0 || cell[a] >= self.dims[a] as i64) {
             return None;
         }
-        let d = self.get(cell.map(|v| v as usize)) as f64 * (self.res / STEPS);
+        let d = self.get(cell.map(|v| v as usize)) as f64 * self.unit();
         let off: f64 = (0..3)
             .map(|a| (p[a] - (k[a] as f64 + 0.5) * self.res).powi(2))
             .sum::<f64>()
@@ -627,7 +640,7 @@ impl Level {
     /// far side of `p` from the obstacle gives a lower bound near the distance itself, where
     /// `p`'s own cell may lose up to its half diagonal. Compared squared, without roots.
     fn bracket(&self, p: [f64; 3], r: f64) -> Option<bool> {
-        let step = self.res / STEPS;
+        let step = self.unit();
         let k = p.map(|v| super::fast_floor(v * self.inv_res - 0.5));
         let cell = [0, 1, 2].map(|a| k[a] as i64 - self.lo[a] as i64);
         if (0..3).any(|a| cell[a] < 0 || cell[a] + 1 >= self.dims[a] as i64) {
@@ -656,110 +669,183 @@ impl Level {
     }
 }
 
-/// Along one axis, the gap from a cell centre to the cube of a cell `cells` away (a whole
-/// number): half a cell less, none for the cell itself.
+/// A squared distance in the transform, in quarter cells squared (`4·d²`, a whole number as
+/// every gap to a cube is a whole number of cells less a half): at most `4·60²` within the
+/// padding, so 16 bits hold it and a row of them fills twice the vector lanes `f32` would.
+type Squared = i16;
+
+/// Unreached: above every squared distance within the padding, and still below `i16::MAX`
+/// with any gap's square added.
+const UNREACHED: Squared = 1 << 14;
+
+/// The farthest padding, cells (2.5 mm voxels at the default 15 cm; finer ones pad less): its
+/// squared distances stay below [`UNREACHED`].
+const MAX_PAD: usize = 60;
+
+/// Along one axis, `4·gap²` from a cell centre to the cube of the cell `cells` away: the gap is
+/// half a cell less than the offset, none for the cell itself.
 #[inline]
-fn cube_gap(cells: f32) -> f32 {
-    (cells - 0.5).max(0.0)
+fn cube_gap_squared(cells: usize) -> Squared {
+    if cells == 0 {
+        0
+    } else {
+        let twice = (2 * cells.min(MAX_PAD + 1) - 1) as Squared;
+        twice * twice
+    }
 }
 
 /// Exact distances (cell units) from every cell centre of the grid to the nearest cube of the
-/// cells `keys`, one axis at a time, stored as `floor(16·distance)` saturated at `pad` cells.
-/// The squared distance to a cube is a sum over the axes of the squared [`cube_gap`] of the
-/// offset, so the transform is separable as for centres. As results saturate, each pass needs
-/// only the neighbours within `pad` cells: a cell under the padding has its nearest key within
-/// `pad` along every axis. The first pass (along `z`, on the bare keys) counts cells to the
-/// nearest key; the others take, row by row, the minimum of the `2·pad + 1` neighbouring rows
-/// each raised by its squared gap, over whole contiguous rows at once (which vectorises),
-/// skipping rows nothing finite has reached.
-fn distance_transform(keys: &[VoxelKey], lo: VoxelKey, dims: [usize; 3], pad: f64) -> Vec<Cell> {
+/// cells `keys`, one axis at a time, stored as `floor(steps·distance)` saturated at `pad`
+/// cells.
+/// The squared distance to a cube is a sum over the axes of the squared gap of the offset, so
+/// the transform is separable as for centres. As results saturate, each pass needs only the
+/// neighbours within `pad` cells: a cell under the padding has its nearest key within `pad`
+/// along every axis. The first pass (along `z`, on the bare keys) counts cells to the nearest
+/// key; the others take, row by row, the minimum of the `2·pad + 1` neighbouring rows each
+/// raised by its squared gap, over whole contiguous rows of 16-bit integers at once (which
+/// vectorises, with AVX2 where the CPU has it), skipping rows nothing finite has reached.
+fn distance_transform(
+    keys: &[VoxelKey],
+    lo: VoxelKey,
+    dims: [usize; 3],
+    pad: i32,
+    steps: f64,
+) -> Vec<Cell> {
+    let pad = (pad.max(0) as usize).min(MAX_PAD);
     let n = dims[0] * dims[1] * dims[2];
-    let pad_cells = pad as usize;
-    let far = (pad * pad) as f32;
-    let mut d = vec![f32::INFINITY; n];
+    let far = 4 * (pad * pad) as Squared;
+    let mut d = vec![UNREACHED; n];
     let mut lines = Vec::with_capacity(keys.len());
     for k in keys {
         let c = [0, 1, 2].map(|a| (k[a] - lo[a]) as usize);
         let line = c[0] * dims[1] + c[1];
-        d[line * dims[2] + c[2]] = 0.0;
+        d[line * dims[2] + c[2]] = 0;
         lines.push(line);
     }
     lines.sort_unstable();
     lines.dedup();
     // Along z: cells to the nearest key in the line, forwards then backwards.
+    let mut runs = vec![0usize; dims[2]];
     for &line in &lines {
         let row = &mut d[line * dims[2]..][..dims[2]];
         let mut run = usize::MAX;
-        for v in row.iter_mut() {
-            run = if *v == 0.0 { 0 } else { run.saturating_add(1) };
-            *v = run as f32;
+        for (v, r) in row.iter().zip(runs.iter_mut()) {
+            run = if *v == 0 { 0 } else { run.saturating_add(1) };
+            *r = run;
         }
         let mut run = usize::MAX;
-        for v in row.iter_mut().rev() {
-            run = if *v == 0.0 { 0 } else { run.saturating_add(1) };
-            let m = cube_gap(v.min(run as f32));
-            *v = if m * m <= far { m * m } else { f32::INFINITY };
+        for (v, r) in row.iter_mut().zip(&runs).rev() {
+            run = if *v == 0 { 0 } else { run.saturating_add(1) };
+            let m = cube_gap_squared(run.min(*r));
+            *v = if m <= far { m } else { UNREACHED };
         }
     }
-    // Along y, then along x: each row of z takes the minimum over the rows within the padding
-    // along the axis, each raised by its squared offset. Rows with nothing finite (far from
-    // every key so far) are skipped.
+    // Along y, then along x.
     let rows = dims[0] * dims[1];
     let mut finite = vec![false; rows];
     for &line in &lines {
         finite[line] = true;
     }
-    let mut src = vec![0.0f32; n];
-    let row_of = |x: usize, y: usize| x * dims[1] + y;
+    let mut src = vec![0; n];
     for axis in [1, 0] {
         src.copy_from_slice(&d);
-        let mut reached = vec![false; rows];
-        for x in 0..dims[0] {
-            for y in 0..dims[1] {
-                let (t, len) = if axis == 1 {
-                    (y, dims[1])
+        finite = if has_avx2() {
+            // SAFETY: the CPU runs AVX2 (checked just above).
+            unsafe { pass_avx2(&mut d, &src, &finite, dims, axis, pad, far) }
+        } else {
+            pass(&mut d, &src, &finite, dims, axis, pad, far)
+        };
+    }
+    // Rounded down: a lower bound. Unreached cells take the cap.
+    let cap = (pad as f64 * steps).min(Cell::MAX as f64) as Cell;
+    let table: Vec<Cell> = (0..=far)
+        .map(|v| ((f64::from(v).sqrt() * steps / 2.0) as Cell).min(cap))
+        .collect();
+    d.iter()
+        .map(|&v| table.get(v as usize).copied().unwrap_or(cap))
+        .collect()
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn pass_avx2(
+    d: &mut [Squared],
+    src: &[Squared],
+    finite: &[bool],
+    dims: [usize; 3],
+    axis: usize,
+    pad: usize,
+    far: Squared,
+) -> Vec<bool> {
+    pass(d, src, finite, dims, axis, pad, far)
+}
+
+#[cfg(not(target_arch = "x86_64"))]
+unsafe fn pass_avx2(
+    d: &mut [Squared],
+    src: &[Squared],
+    finite: &[bool],
+    dims: [usize; 3],
+    axis: usize,
+    pad: usize,
+    far: Squared,
+) -> Vec<bool> {
+    pass(d, src, finite, dims, axis, pad, far)
+}
+
+/// One pass of [`distance_transform`] along `axis` (1: y, 0: x): each row of `z` takes the
+/// minimum over the rows of `src` within the padding along the axis, each raised by its
+/// squared gap; rows `finite` marks none of are skipped. Returns the rows reached.
+#[inline(always)]
+fn pass(
+    d: &mut [Squared],
+    src: &[Squared],
+    finite: &[bool],
+    dims: [usize; 3],
+    axis: usize,
+    pad: usize,
+    far: Squared,
+) -> Vec<bool> {
+    let row_of = |x: usize, y: usize| x * dims[1] + y;
+    let mut reached = vec![false; dims[0] * dims[1]];
+    for x in 0..dims[0] {
+        for y in 0..dims[1] {
+            let (t, len) = if axis == 1 {
+                (y, dims[1])
+            } else {
+                (x, dims[0])
+            };
+            let at = |p: usize| {
+                if axis == 1 {
+                    row_of(x, p)
                 } else {
-                    (x, dims[0])
-                };
-                let at = |p: usize| {
-                    if axis == 1 {
-                        row_of(x, p)
-                    } else {
-                        row_of(p, y)
-                    }
-                };
-                let r = row_of(x, y);
-                let out = &mut d[r * dims[2]..][..dims[2]];
-                for p in t.saturating_sub(pad_cells)..=(t + pad_cells).min(len - 1) {
-                    let q = at(p);
-                    if !finite[q] {
-                        continue;
-                    }
-                    reached[r] = true;
-                    if p == t {
-                        continue;
-                    }
-                    let w = cube_gap((p as f32 - t as f32).abs()).powi(2);
-                    for (o, &v) in out.iter_mut().zip(&src[q * dims[2]..][..dims[2]]) {
-                        let c = v + w;
-                        // A select, not a branch: this is what vectorises.
-                        *o = if c < *o { c } else { *o };
-                    }
+                    row_of(p, y)
                 }
-                if reached[r] {
-                    for o in out.iter_mut() {
-                        *o = if *o > far { f32::INFINITY } else { *o };
-                    }
+            };
+            let r = row_of(x, y);
+            let out = &mut d[r * dims[2]..][..dims[2]];
+            for p in t.saturating_sub(pad)..=(t + pad).min(len - 1) {
+                let q = at(p);
+                if !finite[q] {
+                    continue;
+                }
+                reached[r] = true;
+                if p == t {
+                    continue;
+                }
+                let w = cube_gap_squared(p.abs_diff(t));
+                for (o, &v) in out.iter_mut().zip(&src[q * dims[2]..][..dims[2]]) {
+                    *o = (*o).min(v + w);
+                }
+            }
+            if reached[r] {
+                for o in out.iter_mut() {
+                    *o = if *o > far { UNREACHED } else { *o };
                 }
             }
         }
-        finite = reached;
     }
-    let cap = (pad * STEPS).min(Cell::MAX as f64) as f32;
-    d.iter()
-        // Rounded down (the cast truncates): a lower bound, to the square root's last bit.
-        .map(|&v| (v.sqrt() * STEPS as f32).min(cap) as Cell)
-        .collect()
+    reached
 }
 
 #[cfg(test)]
@@ -881,6 +967,36 @@ mod tests {
         assert!((at([1, 1, 1]) - 0.75f64.sqrt()).abs() < 1.0 / STEPS);
     }
 
+    /// Half-centimetre voxels with the default padding (30 cells, past the 15.9 a byte of
+    /// sixteenths holds): the grid stores eighths, and its cells hold the brute-force
+    /// distance, saturated at 30 cells.
+    #[test]
+    fn fine_voxels_pad_as_far_as_a_cell_stores() {
+        let mut map = OccupancyMap::new(MapParams {
+            resolution: 0.005,
+            ..MapParams::default()
+        });
+        let voxels = [[0, 0, 0], [9, 2, -3], [-20, 0, 1]];
+        for &k in &voxels {
+            map.set_voxel(k, true);
+        }
+        let c = Clearance::of(&map, super::super::CLEARANCE_PAD).unwrap();
+        let g = &c.fine;
+        assert_eq!((g.pad, g.steps), (30, 8.0));
+        let mut saturated = 0;
+        for (k, cell) in g.cells() {
+            let gap = |d: i32| (f64::from(d.abs()) - 0.5).max(0.0);
+            let d2 = voxels
+                .iter()
+                .map(|v| (0..3).map(|a| gap(v[a] - k[a]).powi(2)).sum::<f64>())
+                .fold(f64::INFINITY, f64::min);
+            let want = ((d2.sqrt() * 8.0).floor()).min(240.0) as Cell;
+            assert_eq!(cell, want, "cell {k:?}");
+            saturated += usize::from(cell == 240);
+        }
+        assert!(saturated > 0);
+    }
+
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(64))]
         /// Whatever the grids decide (clear, or surely touching), the voxels decide alike.
@@ -947,7 +1063,7 @@ mod tests {
                 let k = x.map(|v| (v * inv).floor() as i32);
                 let cell = [0, 1, 2].map(|a| k[a].wrapping_sub(g.lo[a]) as u32 as usize);
                 let clear = if (0..3).all(|a| cell[a] < g.dims[a]) {
-                    let d = g.get(cell) as f32 * (res / STEPS as f32);
+                    let d = g.get(cell) as f32 * g.unit() as f32;
                     let o = [0, 1, 2].map(|a| x[a] - (k[a] as f32 + 0.5) * res);
                     let off = (o[0] * o[0] + o[1] * o[1] + o[2] * o[2]).sqrt();
                     d - off >= r + F32_SLACK
