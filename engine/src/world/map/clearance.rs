@@ -749,12 +749,15 @@ fn distance_transform(
     let mut src = vec![0; n];
     for axis in [1, 0] {
         src.copy_from_slice(&d);
-        finite = if has_avx2() {
-            // SAFETY: the CPU runs AVX2 (checked just above).
-            unsafe { pass_avx2(&mut d, &src, &finite, dims, axis, pad, far) }
-        } else {
-            pass(&mut d, &src, &finite, dims, axis, pad, far)
+        let pass = Pass {
+            src: &src,
+            finite: &finite,
+            dims,
+            axis,
+            pad,
+            far,
         };
+        finite = pass.run(&mut d);
     }
     // Rounded down: a lower bound. Unreached cells take the cap.
     let cap = (pad as f64 * steps).min(Cell::MAX as f64) as Cell;
@@ -766,86 +769,87 @@ fn distance_transform(
         .collect()
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn pass_avx2(
-    d: &mut [Squared],
-    src: &[Squared],
-    finite: &[bool],
-    dims: [usize; 3],
-    axis: usize,
-    pad: usize,
-    far: Squared,
-) -> Vec<bool> {
-    pass(d, src, finite, dims, axis, pad, far)
-}
-
-#[cfg(not(target_arch = "x86_64"))]
-unsafe fn pass_avx2(
-    d: &mut [Squared],
-    src: &[Squared],
-    finite: &[bool],
-    dims: [usize; 3],
-    axis: usize,
-    pad: usize,
-    far: Squared,
-) -> Vec<bool> {
-    pass(d, src, finite, dims, axis, pad, far)
-}
-
 /// One pass of [`distance_transform`] along `axis` (1: y, 0: x): each row of `z` takes the
 /// minimum over the rows of `src` within the padding along the axis, each raised by its
-/// squared gap; rows `finite` marks none of are skipped. Returns the rows reached.
-#[inline(always)]
-fn pass(
-    d: &mut [Squared],
-    src: &[Squared],
-    finite: &[bool],
+/// squared gap; rows `finite` marks none of are skipped.
+struct Pass<'a> {
+    src: &'a [Squared],
+    finite: &'a [bool],
     dims: [usize; 3],
     axis: usize,
     pad: usize,
     far: Squared,
-) -> Vec<bool> {
-    let row_of = |x: usize, y: usize| x * dims[1] + y;
-    let mut reached = vec![false; dims[0] * dims[1]];
-    for x in 0..dims[0] {
-        for y in 0..dims[1] {
-            let (t, len) = if axis == 1 {
-                (y, dims[1])
-            } else {
-                (x, dims[0])
-            };
-            let at = |p: usize| {
-                if axis == 1 {
-                    row_of(x, p)
+}
+
+impl Pass<'_> {
+    /// Writes the pass into `d`, compiled for AVX2 where the CPU runs it; returns the rows
+    /// reached.
+    fn run(&self, d: &mut [Squared]) -> Vec<bool> {
+        #[cfg(target_arch = "x86_64")]
+        if has_avx2() {
+            // SAFETY: the CPU runs AVX2 (checked just above).
+            return unsafe { self.run_avx2(d) };
+        }
+        self.rows(d)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn run_avx2(&self, d: &mut [Squared]) -> Vec<bool> {
+        self.rows(d)
+    }
+
+    #[inline(always)]
+    fn rows(&self, d: &mut [Squared]) -> Vec<bool> {
+        let Pass {
+            src,
+            finite,
+            dims,
+            axis,
+            pad,
+            far,
+        } = *self;
+        let row_of = |x: usize, y: usize| x * dims[1] + y;
+        let mut reached = vec![false; dims[0] * dims[1]];
+        for x in 0..dims[0] {
+            for y in 0..dims[1] {
+                let (t, len) = if axis == 1 {
+                    (y, dims[1])
                 } else {
-                    row_of(p, y)
+                    (x, dims[0])
+                };
+                let at = |p: usize| {
+                    if axis == 1 {
+                        row_of(x, p)
+                    } else {
+                        row_of(p, y)
+                    }
+                };
+                let r = row_of(x, y);
+                let out = &mut d[r * dims[2]..][..dims[2]];
+                for p in t.saturating_sub(pad)..=(t + pad).min(len - 1) {
+                    let q = at(p);
+                    if !finite[q] {
+                        continue;
+                    }
+                    reached[r] = true;
+                    if p == t {
+                        continue;
+                    }
+                    let w = cube_gap_squared(p.abs_diff(t));
+                    for (o, &v) in out.iter_mut().zip(&src[q * dims[2]..][..dims[2]]) {
+                        *o = (*o).min(v + w);
+                    }
                 }
-            };
-            let r = row_of(x, y);
-            let out = &mut d[r * dims[2]..][..dims[2]];
-            for p in t.saturating_sub(pad)..=(t + pad).min(len - 1) {
-                let q = at(p);
-                if !finite[q] {
-                    continue;
-                }
-                reached[r] = true;
-                if p == t {
-                    continue;
-                }
-                let w = cube_gap_squared(p.abs_diff(t));
-                for (o, &v) in out.iter_mut().zip(&src[q * dims[2]..][..dims[2]]) {
-                    *o = (*o).min(v + w);
-                }
-            }
-            if reached[r] {
-                for o in out.iter_mut() {
-                    *o = if *o > far { UNREACHED } else { *o };
+                if reached[r] {
+                    for o in out.iter_mut() {
+                        *o = if *o > far { UNREACHED } else { *o };
+                    }
                 }
             }
         }
+        reached
     }
-    reached
 }
 
 #[cfg(test)]
@@ -872,6 +876,24 @@ mod tests {
                 ([0, 1, 2].map(|a| c[a] as i32 + self.lo[a]), self.get(c))
             })
         }
+    }
+
+    /// Asserts that every cell of `g` holds the brute-force distance from its centre to the
+    /// nearest cube of `voxels`, rounded down to its stored unit and saturated; returns how
+    /// many cells are saturated.
+    fn assert_brute_force(g: &Level, voxels: &[[i32; 3]]) -> usize {
+        let mut saturated = 0;
+        for (k, cell) in g.cells() {
+            let gap = |d: i32| (f64::from(d.abs()) - 0.5).max(0.0);
+            let d2 = voxels
+                .iter()
+                .map(|v| (0..3).map(|a| gap(v[a] - k[a]).powi(2)).sum::<f64>())
+                .fold(f64::INFINITY, f64::min);
+            let want = ((d2.sqrt() * g.steps).floor()).min(f64::from(g.cap())) as Cell;
+            assert_eq!(cell, want, "cell {k:?}");
+            saturated += usize::from(cell == g.cap());
+        }
+        saturated
     }
 
     fn map_of(voxels: &[[i32; 3]]) -> OccupancyMap {
@@ -982,19 +1004,8 @@ mod tests {
         }
         let c = Clearance::of(&map, super::super::CLEARANCE_PAD).unwrap();
         let g = &c.fine;
-        assert_eq!((g.pad, g.steps), (30, 8.0));
-        let mut saturated = 0;
-        for (k, cell) in g.cells() {
-            let gap = |d: i32| (f64::from(d.abs()) - 0.5).max(0.0);
-            let d2 = voxels
-                .iter()
-                .map(|v| (0..3).map(|a| gap(v[a] - k[a]).powi(2)).sum::<f64>())
-                .fold(f64::INFINITY, f64::min);
-            let want = ((d2.sqrt() * 8.0).floor()).min(240.0) as Cell;
-            assert_eq!(cell, want, "cell {k:?}");
-            saturated += usize::from(cell == 240);
-        }
-        assert!(saturated > 0);
+        assert_eq!((g.pad, g.steps, g.cap()), (30, 8.0, 240));
+        assert!(assert_brute_force(g, &voxels) > 0);
     }
 
     proptest! {
@@ -1028,16 +1039,8 @@ mod tests {
             }
             prop_assert!(decided[0] > 0, "nothing cleared");
             // Every cell holds the brute-force distance to the cubes (rounded down, saturated).
-            let g = &c.fine;
-            for (k, cell) in g.cells() {
-                let gap = |d: i32| (f64::from(d.abs()) - 0.5).max(0.0);
-                let d2 = voxels
-                    .iter()
-                    .map(|v| (0..3).map(|a| gap(v[a] - k[a]).powi(2)).sum::<f64>())
-                    .fold(f64::INFINITY, f64::min);
-                let want = ((d2.sqrt() * STEPS).floor()).min(5.0 * STEPS) as Cell;
-                prop_assert_eq!(cell, want, "cell {:?}", k);
-            }
+            prop_assert_eq!(c.fine.cap(), 80);
+            assert_brute_force(&c.fine, &voxels);
             // The grid is not vacuous: far or small balls are cleared.
             prop_assert!(c.clear([5.0, 5.0, 5.0], 0.1));
         }
