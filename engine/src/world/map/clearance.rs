@@ -568,8 +568,8 @@ impl Level {
         keys.clear();
         seeds((wlo, whi), keys);
         let wdims = [0, 1, 2].map(|a| (whi[a] - wlo[a] + 1) as usize);
-        let d = distance_transform(keys, wlo, wdims, self.pad, self.steps);
         let cap = self.cap();
+        let d = distance_transform(keys, wlo, wdims, self.pad, self.steps, cap);
         // Brick by brick over the region.
         let (clo, chi) = (
             [0, 1, 2].map(|a| (rlo[a] - glo[a]) as usize),
@@ -695,8 +695,8 @@ fn cube_gap_squared(cells: usize) -> Squared {
 }
 
 /// Exact distances (cell units) from every cell centre of the grid to the nearest cube of the
-/// cells `keys`, one axis at a time, stored as `floor(steps·distance)` saturated at `pad`
-/// cells.
+/// cells `keys`, one axis at a time, stored as `floor(steps·distance)` saturated at `cap` (the
+/// grid's `pad` cells).
 /// The squared distance to a cube is a sum over the axes of the squared gap of the offset, so
 /// the transform is separable as for centres. As results saturate, each pass needs only the
 /// neighbours within `pad` cells: a cell under the padding has its nearest key within `pad`
@@ -710,6 +710,7 @@ fn distance_transform(
     dims: [usize; 3],
     pad: i32,
     steps: f64,
+    cap: Cell,
 ) -> Vec<Cell> {
     let pad = (pad.max(0) as usize).min(MAX_PAD);
     let n = dims[0] * dims[1] * dims[2];
@@ -760,7 +761,6 @@ fn distance_transform(
         finite = pass.run(&mut d);
     }
     // Rounded down: a lower bound. Unreached cells take the cap.
-    let cap = (pad as f64 * steps).min(Cell::MAX as f64) as Cell;
     let table: Vec<Cell> = (0..=far)
         .map(|v| ((f64::from(v).sqrt() * steps / 2.0) as Cell).min(cap))
         .collect();
