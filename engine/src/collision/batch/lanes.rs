@@ -143,6 +143,18 @@ impl F8 {
         }))
     }
 
+    /// Lane-wise `a` where `m` is set, else `b` (one blend under AVX).
+    #[inline(always)]
+    pub fn select(m: Mask8, a: F8, b: F8) -> F8 {
+        F8(std::array::from_fn(|k| {
+            if m.0[k] != 0 {
+                a.0[k]
+            } else {
+                b.0[k]
+            }
+        }))
+    }
+
     /// The least lane (halving, so it runs in vector halves).
     #[inline(always)]
     pub fn hmin(self) -> f32 {

@@ -55,6 +55,10 @@ const RECENT: usize = 8;
 /// screens the end states of several tree extensions at once.
 const SCREEN: usize = 32;
 
+/// Added to the offsets of clusters and spheres from the balls holding them (metres): far above
+/// the lanes' rounding of their placements at robot scale.
+const OFFSET_SLACK: f32 = 1e-5;
+
 /// Stamp of placements that never change (links that do not move).
 const STATIC: u32 = u32::MAX;
 
@@ -203,6 +207,11 @@ pub struct BatchChecker {
     cluster: Vec<([f32; 3], f32, std::ops::Range<usize>)>,
     /// Per sphere: centre (link frame), radius (+ margin).
     sphere: Vec<([f32; 3], f32)>,
+    /// Per cluster: the distance from its link's bound's centre to its centre, and per
+    /// sphere from its cluster's centre to its centre (each plus a hair for the lanes'
+    /// rounding): how far a ball inside reaches from the outer ball's centre.
+    cluster_offset: Vec<f32>,
+    sphere_offset: Vec<f32>,
     /// Per sphere: centre and the radius of its ball inside the geometry (less the margin):
     /// swapped with `sphere` for [`BatchChecker::state_surely_collides`].
     sphere_inner: Vec<([f32; 3], f32)>,
@@ -380,6 +389,21 @@ impl BatchChecker {
                 (place(l, model.center[s]), f(model.radius[s]) + MARGIN)
             })
             .collect();
+        let apart = |a: [f32; 3], b: [f32; 3]| {
+            let d2: f32 = (0..3).map(|i| (a[i] - b[i]) * (a[i] - b[i])).sum();
+            d2.sqrt() + OFFSET_SLACK
+        };
+        let cluster_offset = cluster
+            .iter()
+            .enumerate()
+            .map(|(ci, c)| bound[owner[ci]].map_or(f32::INFINITY, |(b, _)| apart(b, c.0)))
+            .collect();
+        let mut sphere_offset = vec![f32::INFINITY; sphere.len()];
+        for (c, _, range) in &cluster {
+            for s in range.clone() {
+                sphere_offset[s] = apart(*c, sphere[s].0);
+            }
+        }
         let sphere_inner: Vec<_> = (0..model.len())
             .map(|s| {
                 let l = model.link[s] as usize;
@@ -442,6 +466,8 @@ impl BatchChecker {
             link_clusters: model.link_clusters.clone(),
             cluster,
             sphere,
+            cluster_offset,
+            sphere_offset,
             sphere_inner,
             objects: Vec::new(),
             object_boxes: Vec::new(),
@@ -1039,9 +1065,11 @@ impl BatchChecker {
             let link_mask = self.objects_reached(group, b, br);
             // The lanes where the map may reach the link, then each cluster, then its
             // spheres: a ball inside one the grid cleared in a lane is clear in that lane.
-            let link_map = match map {
-                Some(_) => unclear_lanes(grid, b, br, self.live),
-                None => 0,
+            // With each level's unclear lanes, a lower bound on the distance from its centre
+            // to the voxels: a ball inside it that the bound clears in a lane needs no read.
+            let (link_map, link_room) = match map {
+                Some(_) => unclear_within(grid, b, br, self.live),
+                None => (0, F8::default()),
             };
             if link_mask == 0 && link_map == 0 {
                 continue;
@@ -1050,7 +1078,8 @@ impl BatchChecker {
                 self.place_cluster(l, ci);
                 let (c, cr) = (self.cluster_at[ci], self.cluster[ci].1);
                 let cluster_mask = penetrated(&self.objects[first..end], link_mask, c, cr);
-                let cluster_map = unclear_lanes(grid, c, cr, link_map);
+                let asked = link_map & !roomy(link_room, self.cluster_offset[ci] + cr);
+                let (cluster_map, cluster_room) = unclear_within(grid, c, cr, asked);
                 if cluster_mask == 0 && cluster_map == 0 {
                     continue;
                 }
@@ -1077,7 +1106,11 @@ impl BatchChecker {
                         self.keep_for_screening((l, s, j));
                         return true;
                     }
-                    if cluster_map != 0 && lanes_touch_map(map, grid, p, r, cluster_map) {
+                    let asked = match cluster_map {
+                        0 => 0,
+                        m => m & !roomy(cluster_room, self.sphere_offset[s] + r),
+                    };
+                    if asked != 0 && lanes_touch_map(map, grid, p, r, asked) {
                         self.remember((l, s, Touched::Map));
                         return true;
                     }
@@ -1460,11 +1493,25 @@ fn overlap(a: [F8; 3], ra: f32, b: [F8; 3], rb: f32) -> bool {
 /// radius `r`); all of them without a grid.
 #[inline(always)]
 fn unclear_lanes(grid: Option<&Clearance>, p: [F8; 3], r: f32, lanes: u32) -> u32 {
+    unclear_within(grid, p, r, lanes).0
+}
+
+/// [`unclear_lanes`], with each lane's lower bound on the distance from `p` to the voxels
+/// ([`Clearance::unclear8_within`]; zero without a grid).
+#[inline(always)]
+fn unclear_within(grid: Option<&Clearance>, p: [F8; 3], r: f32, lanes: u32) -> (u32, F8) {
     // No closures on this path: they would be compiled without the caller's AVX2.
     match grid {
-        Some(g) if lanes != 0 => g.unclear8(p, r, lanes),
-        _ => lanes,
+        Some(g) if lanes != 0 => g.unclear8_within(p, r, lanes),
+        _ => (lanes, F8::default()),
     }
+}
+
+/// The lanes (bits) whose lower bound `room` on the distance to the voxels reaches `reach`:
+/// there a ball reaching that far from the bound's centre is clear.
+#[inline(always)]
+fn roomy(room: F8, reach: f32) -> u32 {
+    F8::splat(reach).le(room).bits()
 }
 
 /// True when the ball touches an occupied voxel in one of `lanes` (bits): the grid clears

@@ -332,7 +332,19 @@ impl Clearance {
     /// [`Clearance::clear`] decides it (a lane that is not a number stays unclear).
     #[inline(always)]
     pub fn unclear8(&self, p: [F8; 3], r: f32, lanes: u32) -> u32 {
-        self.test8::<false>(p, r, lanes).unwrap_or(lanes)
+        self.unclear8_within(p, r, lanes).0
+    }
+
+    /// [`Clearance::unclear8`], with a lower bound per lane on the distance (metres) from the
+    /// lane's centre to the occupied voxels, from the same read (minus the queries' slack;
+    /// zero in a lane the grids do not hold). A distance to a set changes no faster than the
+    /// point moves, so a ball of radius `ρ` whose centre lies within `δ` of `p` is clear in
+    /// the lanes whose bound is at least `δ + ρ`: the balls a larger one holds (a cluster's
+    /// spheres, a link's clusters) are cleared there without reading the grids again.
+    #[inline(always)]
+    pub fn unclear8_within(&self, p: [F8; 3], r: f32, lanes: u32) -> (u32, F8) {
+        self.test8::<false>(p, r, lanes)
+            .unwrap_or((lanes, F8::splat(0.0)))
     }
 
     /// [`Clearance::unclear8`] for balls of the robot's geometry, which also confirms
@@ -344,11 +356,13 @@ impl Clearance {
     /// in it.)
     #[inline(always)]
     pub fn sphere8(&self, p: [F8; 3], r: f32, lanes: u32) -> Option<u32> {
-        self.test8::<true>(p, r, lanes)
+        self.test8::<true>(p, r, lanes).map(|(unclear, _)| unclear)
     }
 
+    /// The unclear lanes and the lanes' lower bounds (see [`Clearance::unclear8_within`]),
+    /// or `None` for a confirmed contact (only with `CONFIRM`).
     #[inline(always)]
-    fn test8<const CONFIRM: bool>(&self, p: [F8; 3], r: f32, lanes: u32) -> Option<u32> {
+    fn test8<const CONFIRM: bool>(&self, p: [F8; 3], r: f32, lanes: u32) -> Option<(u32, F8)> {
         let fine = f64::from(r) <= self.fine_radius;
         let g = if fine { &self.fine } else { &self.coarse };
         let l = &g.lanes;
@@ -402,14 +416,15 @@ impl Clearance {
         let unclear = (asked & inside).and_not(clear);
         let outside = asked.and_not(inside);
         if !(unclear.any() || outside.any()) {
-            return Some(0);
+            return Some((0, zero));
         }
+        let below = F8::select(inside, d - off - F8::splat(F32_SLACK), zero);
         let out = unclear.bits();
         let outside = outside.bits();
         if outside == 0 {
-            return Some(out);
+            return Some((out, below));
         }
-        Some(out | (outside & !self.beyond8(p, r)))
+        Some((out | (outside & !self.beyond8(p, r)), below))
     }
 
     /// The lanes (bits) whose ball (centres `p`, radius `r`) surely misses the box holding
