@@ -1078,8 +1078,12 @@ impl BatchChecker {
                 self.place_cluster(l, ci);
                 let (c, cr) = (self.cluster_at[ci], self.cluster[ci].1);
                 let cluster_mask = penetrated(&self.objects[first..end], link_mask, c, cr);
-                let asked = link_map & !roomy(link_room, self.cluster_offset[ci] + cr);
-                let (cluster_map, cluster_room) = unclear_within(grid, c, cr, asked);
+                let (cluster_map, cluster_room) = unclear_inside(
+                    grid,
+                    (c, cr),
+                    link_map,
+                    (link_room, self.cluster_offset[ci]),
+                );
                 if cluster_mask == 0 && cluster_map == 0 {
                     continue;
                 }
@@ -1505,6 +1509,22 @@ fn unclear_within(grid: Option<&Clearance>, p: [F8; 3], r: f32, lanes: u32) -> (
         Some(g) if lanes != 0 => g.unclear8_within(p, r, lanes),
         _ => (lanes, F8::default()),
     }
+}
+
+/// [`unclear_within`] for a ball (centres `p`, radius `r`) inside an outer one left unclear in
+/// `lanes`, whose read gave the lower bound `room` there: the lanes where the ball's `offset`
+/// from the outer centre plus its radius stays within the bound are clear without a read.
+#[inline(always)]
+fn unclear_inside(
+    grid: Option<&Clearance>,
+    (p, r): ([F8; 3], f32),
+    lanes: u32,
+    (room, offset): (F8, f32),
+) -> (u32, F8) {
+    if lanes == 0 {
+        return (0, F8::default());
+    }
+    unclear_within(grid, p, r, lanes & !roomy(room, offset + r))
 }
 
 /// The lanes (bits) whose lower bound `room` on the distance to the voxels reaches `reach`:
