@@ -376,10 +376,12 @@ impl Clearance {
         for (a, &pa) in p.iter().enumerate() {
             let x = pa * inv;
             let f = x.floor();
-            // Cell coordinates are exact in `f32`: the grid lies within `CELL_LIMIT`.
+            // Cell coordinates are exact in `f32`: the grid lies within `CELL_LIMIT`, so a lane
+            // whose cell falls in it has `|x|` below that too (farther out, `f − lo` lies past
+            // either end however it rounds; a NaN or an infinity compares false or past them).
             let c = f - F8::splat(l.lo[a]);
             let last = F8::splat(l.last[a]);
-            let ok = zero.le(c) & c.le(last) & x.abs().le(F8::splat(CELL_LIMIT));
+            let ok = zero.le(c) & c.le(last);
             inside = Some(inside.map_or(ok, |m| m & ok));
             // Whole numbers below 2²⁰ (MAX_CELLS / 64: the other two axes hold a brick each).
             let k = c.max(zero).min(last).small_uints();
@@ -928,6 +930,39 @@ mod tests {
         let mut y = far;
         y.0[5] = f32::NAN;
         assert_eq!(c.unclear8([x, y, far], 0.05, ALL_LANES), 1 << 3 | 1 << 5);
+    }
+
+    #[test]
+    fn lanes_far_past_the_grid_are_cleared_by_the_occupied_box() {
+        let map = map_of(&[[0, 0, 0]]);
+        let c = Clearance::of(&map, 0.2).unwrap();
+        let res = map.resolution() as f32;
+        // Where `x / res` leaves the cell limit, `f32` floors, differences and infinities.
+        let far = [
+            CELL_LIMIT * res * 1.5,
+            -CELL_LIMIT * res * 1.5,
+            CELL_LIMIT * res * 4.0 + 0.5 * res,
+            -CELL_LIMIT * res * 4.0 - 0.5 * res,
+            1e30,
+            f32::MAX,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+        ];
+        let centre = map.voxel_center([0, 0, 0]).map(|v| v as f32);
+        for axis in 0..3 {
+            let p: [F8; 3] = std::array::from_fn(|a| {
+                if a == axis {
+                    F8(far)
+                } else {
+                    F8::splat(centre[a])
+                }
+            });
+            assert_eq!(c.unclear8(p, 0.05, ALL_LANES), 0, "axis {axis}");
+            // The occupied voxel's own lane stays unclear beside them.
+            let mut p = p;
+            p[axis].0[2] = centre[axis];
+            assert_eq!(c.unclear8(p, 0.05, ALL_LANES), 1 << 2, "axis {axis}");
+        }
     }
 
     #[test]
