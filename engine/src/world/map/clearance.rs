@@ -1095,6 +1095,37 @@ mod tests {
             prop_assert!(c.clear([5.0, 5.0, 5.0], 0.1));
         }
 
+        /// The lower bounds the eight-lane query gives in its unclear lanes are at most the
+        /// distance to the nearest occupied voxel, and not vacuous: each lies within a cell's
+        /// diagonal and a stored unit of it where the centre's cell holds an unsaturated distance.
+        #[test]
+        fn lower_bounds_lie_below_the_voxels(
+            voxels in prop::collection::vec(prop::array::uniform3(-12i32..12), 1..40),
+            centres in prop::collection::vec(prop::array::uniform3(-0.3f32..0.3), 8),
+            r in 0.0f32..0.3,
+        ) {
+            let map = map_of(&voxels);
+            let c = Clearance::of(&map, 0.2).unwrap();
+            let p: [F8; 3] = std::array::from_fn(|a| F8(std::array::from_fn(|i| centres[i][a])));
+            let (unclear, below) = c.unclear8_within(p, r, ALL_LANES);
+            let g = if f64::from(r) <= c.fine_radius { &c.fine } else { &c.coarse };
+            let slack = (2.0 * g.half_diagonal + g.unit()) as f32 + 1e-4;
+            for i in (0..LANES).filter(|i| unclear >> i & 1 != 0) {
+                let x = centres[i].map(f64::from);
+                let d = voxels
+                    .iter()
+                    .map(|&k| map.voxel_gap2(x, map.voxel_center(k)))
+                    .fold(f64::INFINITY, f64::min)
+                    .sqrt() as f32;
+                prop_assert!(below.0[i] <= d, "lane {} bound {} distance {}", i, below.0[i], d);
+                let stored = g.bounds(x).map(|(s, _)| s);
+                let unsaturated = stored.is_some_and(|s| s < f64::from(g.cap()) * g.unit());
+                if std::ptr::eq(g, &c.fine) && unsaturated {
+                    prop_assert!(below.0[i] >= d - slack, "lane {} bound {} distance {}", i, below.0[i], d);
+                }
+            }
+        }
+
         /// The eight-lane query answers as the same test made lane by lane (the cell by a
         /// floor, then its stored distance less the centre's offset), lanes outside the grids
         /// included, whichever lanes are asked.
