@@ -6,9 +6,10 @@
 //! scene's objects but the point cloud `DIR/<set>/cloudNNNN.pcd` (ASCII PCD, x y z in the base
 //! frame, as the VAMP peer writes them), its points marked occupied in an occupancy map at
 //! `--cloud-resolution` (default 0.01 m); problems without a cloud are skipped (VAMP found
-//! them invalid). `--map-compare` (with `--clouds`) plans each problem twice on the same scene:
-//! against its objects alone (map off) and against the objects with the cloud's map (map on, as
-//! emberd plans with `planner.use_map`); the `RESULT plan` line is then the map-on run (key
+//! them invalid). `--map-compare` (with `--clouds`) plans each problem three times on the same
+//! scene: against its objects alone (map off), against the objects with the cloud's map (map on,
+//! uncarved: as emberd plans with `planner.use_map` and `map.carve_objects = false`) and against
+//! the cloud's map alone (below); the `RESULT plan` line is then the map-on run (key
 //! `objects=1`), followed by `RESULT plan_map set= n= solved_off= solved_on= off_median_ms=
 //! on_median_ms= ratio= off_check_ns_per_config= on_check_ns_per_config= off_median_iterations=
 //! on_median_iterations= solved_voxels= voxels_median_ms= voxels_check_ns_per_config=
@@ -68,8 +69,8 @@ pub struct Args {
     /// Voxel size of the map built from each cloud, metres.
     #[arg(long, default_value_t = 0.01)]
     cloud_resolution: f64,
-    /// With `--clouds`: plan each problem against the scene's objects alone (map off) and
-    /// against the objects with the cloud's map (map on, as emberd with `use_map`).
+    /// With `--clouds`: plan each problem against the scene's objects alone (map off), against
+    /// the objects with the cloud's map, uncarved (map on), and against the map alone.
     #[arg(long)]
     map_compare: bool,
     /// Also print one `PROBLEM` line per problem (time, iterations, nodes, exact fallbacks).
