@@ -60,6 +60,7 @@ fn ingest(args: &Args) {
         },
         use_map: true,
         carve_padding: Some(0.02),
+        unknown_obstacles: None,
         self_filter_padding: 0.03,
     });
     let robot = ember_engine::robot::Robot::builtin("fetch").expect("built-in");
@@ -133,6 +134,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         map: MapParams::default(),
         use_map: false,
         carve_padding: None,
+        unknown_obstacles: None,
         self_filter_padding: 0.03,
     });
     let t = Instant::now();

@@ -167,6 +167,12 @@ pub struct PlannerConfig {
     pub range: f64,
     pub simplify: bool,
     pub use_map: bool,
+    /// With `use_map`: space never observed inside this box (min and max corners, base frame,
+    /// metres) is an obstacle; unset, unknown space is free.
+    #[serde(default)]
+    pub unknown_obstacle_min: Option<[f64; 3]>,
+    #[serde(default)]
+    pub unknown_obstacle_max: Option<[f64; 3]>,
 }
 
 /// `[trajectory]`: how solved paths are timed (requests may lower the scaling factors).
@@ -279,6 +285,10 @@ impl Config {
             use_map: self.planner.use_map,
             self_filter_padding: self.map.self_filter_padding,
             carve_padding: self.map.carve_objects.then_some(self.map.carve_padding),
+            unknown_obstacles: self
+                .planner
+                .unknown_obstacle_min
+                .zip(self.planner.unknown_obstacle_max),
         }
     }
 
@@ -375,6 +385,28 @@ impl Config {
             return Err(
                 "keys map.bounds_min / map.bounds_max: min must be below max on every axis".into(),
             );
+        }
+        match (
+            self.planner.unknown_obstacle_min,
+            self.planner.unknown_obstacle_max,
+        ) {
+            (None, None) => {}
+            (Some(lo), Some(hi)) => {
+                if (0..3).any(|a| !(lo[a].is_finite() && hi[a].is_finite() && lo[a] < hi[a])) {
+                    return Err(
+                        "keys planner.unknown_obstacle_min / planner.unknown_obstacle_max: \
+                         min must be below max on every axis, both finite"
+                            .into(),
+                    );
+                }
+            }
+            _ => {
+                return Err(
+                    "keys planner.unknown_obstacle_min / planner.unknown_obstacle_max: \
+                     give both or neither"
+                        .into(),
+                )
+            }
         }
         for (key, v) in [
             ("limits.clients", self.limits.clients),

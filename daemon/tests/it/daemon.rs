@@ -544,6 +544,37 @@ fn sdk_examples_run_against_a_daemon() {
 }
 
 #[test]
+fn unknown_space_in_the_configured_box_refuses_a_goal_there() {
+    let dir = std::env::temp_dir().join(format!("ember-unknown-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let config = dir.join("emberd.toml");
+    // A box around the gripper's place at `goal_near_can` (tip at 0.66, 0.1, 0.86), which no
+    // camera has seen.
+    std::fs::write(
+        &config,
+        "[planner]\nunknown_obstacle_min = [0.55, 0.0, 0.76]\nunknown_obstacle_max = [0.8, 0.2, 0.96]\n",
+    )
+    .unwrap();
+    let d = Daemon::start_args(
+        "unknown",
+        &["--no-monitor", "--config", config.to_str().unwrap()],
+    );
+    let client = d.client();
+    publish_table(&client);
+    wait_for(&client, "objects", |s| s.world_objects == 3);
+    let mut near = call(FREE_GOAL);
+    near.goals = vec![goal_near_can()];
+    let reply = client.plan(&near, Duration::from_secs(20)).unwrap();
+    assert_eq!(reply.status, Status::GoalInCollision, "{}", reply.message());
+    // Elsewhere the daemon plans as before.
+    let reply = client
+        .plan(&call(FREE_GOAL), Duration::from_secs(20))
+        .unwrap();
+    assert_eq!(reply.status, Status::Ok, "{}", reply.message());
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
 fn bad_config_key_is_named() {
     let dir = std::env::temp_dir().join(format!("ember-cfg-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -564,6 +595,15 @@ fn bad_config_key_is_named() {
         (
             "[planner]\ndefault_time_limit_s = 60.0\n",
             "planner.default_time_limit_s",
+        ),
+        // The unknown-space box: both corners or neither, each below the other.
+        (
+            "[planner]\nunknown_obstacle_min = [0.0, 0.0, 0.0]\n",
+            "planner.unknown_obstacle_max",
+        ),
+        (
+            "[planner]\nunknown_obstacle_min = [0.0, 0.0, 1.0]\nunknown_obstacle_max = [1.0, 1.0, 0.5]\n",
+            "planner.unknown_obstacle_min",
         ),
     ] {
         std::fs::write(&cfg, text).unwrap();

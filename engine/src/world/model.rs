@@ -86,6 +86,10 @@ pub struct WorldParams {
     /// one are dropped, and the voxels an object fills are cleared when it arrives or moves;
     /// FLAME then sees the objects voxelised into its octoboxes. `None`: the map keeps them.
     pub carve_padding: Option<f64>,
+    /// A box (base frame, metres: min and max corners) in which space never observed is an
+    /// obstacle for planning, as occupied voxels are (with `use_map`); `None`: unknown space is
+    /// free everywhere (OctoMap's and MoveIt's convention).
+    pub unknown_obstacles: Option<([f64; 3], [f64; 3])>,
 }
 
 /// What the planner sees: a consistent copy of the world at one instant.
@@ -99,7 +103,8 @@ pub struct Snapshot {
     /// The non-empty octoboxes (FLAME's primitives): the map's, and the carved objects'
     /// voxels, extracted once per change.
     pub octoboxes: Arc<Vec<Octobox>>,
-    /// Objects (+ map when configured) for collision checking.
+    /// Objects (+ map when configured, with the unknown space of
+    /// [`WorldParams::unknown_obstacles`] occupied) for collision checking.
     pub env: Environment,
     /// Counts object changes: equal versions, equal objects.
     pub objects_version: u64,
@@ -132,6 +137,11 @@ pub struct World {
     use_map: bool,
     padding: f64,
     carve: Option<f64>,
+    /// See [`WorldParams::unknown_obstacles`].
+    unknown: Option<([f64; 3], [f64; 3])>,
+    /// With `unknown`: the map with the unknown space in that box occupied, made after each
+    /// change of the map (what planning avoids; FLAME and monitoring see the map itself).
+    planned_map: Option<Arc<OccupancyMap>>,
     objects_version: u64,
 }
 
@@ -190,7 +200,7 @@ fn voxelise(map: &OccupancyMap, alone: &Environment, lo: [f64; 3], hi: [f64; 3])
 impl World {
     /// An empty world.
     pub fn new(params: &WorldParams) -> Self {
-        World {
+        let mut world = World {
             scene: Scene::default(),
             pairs: PairSet::new(&ExperienceParams::default()),
             env: Environment::new(),
@@ -203,7 +213,21 @@ impl World {
             use_map: params.use_map,
             padding: params.self_filter_padding,
             carve: params.carve_padding,
+            unknown: params.unknown_obstacles,
+            planned_map: None,
             objects_version: 0,
+        };
+        world.map_changed();
+        world
+    }
+
+    /// Brings what planning sees of the map up to date after the map changed: with
+    /// [`WorldParams::unknown_obstacles`], the map with the unknown space in the box occupied.
+    fn map_changed(&mut self) {
+        if let (Some((lo, hi)), true) = (self.unknown, self.use_map) {
+            let mut planned = self.map.with_unknown_occupied(lo, hi);
+            planned.refresh_clearance();
+            self.planned_map = Some(Arc::new(planned));
         }
     }
 
@@ -403,6 +427,9 @@ impl World {
                 Arc::new(octoboxes_updated(&self.map_octoboxes, map, &report.changed));
             self.merge_octoboxes();
         }
+        // Free space observed turns unknown space free too, whether or not any occupancy
+        // changed.
+        self.map_changed();
         report
     }
 
@@ -421,6 +448,7 @@ impl World {
                 map.refresh_clearance();
             }
             self.map_octoboxes = Arc::new(octoboxes(map));
+            self.map_changed();
         }
         let blocks = voxelise(&self.map, &alone, placed.lo, placed.hi);
         self.object_blocks.insert(object.name.clone(), blocks);
@@ -452,8 +480,9 @@ impl World {
         if self.use_map {
             // The planner's grids, kept up to date by the changes above; built here (the
             // ingest thread) when they are not, rather than by the first plan.
-            self.map.clearance();
-            env.set_map(Some(self.map.clone()));
+            let planned = self.planned_map.as_ref().unwrap_or(&self.map);
+            planned.clearance();
+            env.set_map(Some(planned.clone()));
         }
         Snapshot {
             scene: self.scene.clone(),

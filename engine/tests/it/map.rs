@@ -254,3 +254,65 @@ fn robot_collides_with_occupied_voxels() {
         .to_string()
         .contains("occupancy map"));
 }
+
+/// Unknown space in a box made occupied: what was seen stays as it was (free in front of a
+/// wall, occupied on it), what was never seen inside the box is occupied, outside it unknown;
+/// the copy's clearance grids agree with its voxels, and the map itself is unchanged.
+#[test]
+fn unknown_space_in_a_box_becomes_occupied_in_a_copy() {
+    let mut map = OccupancyMap::new(MapParams::default());
+    // A wall at x = 1 seen from the origin: free space in front of it, unknown behind it.
+    map.insert_cloud(&wall(1.0, 0.0, 0.2), &Pose::identity(), None);
+    let (lo, hi) = ([0.5, -0.1, -0.1], [1.3, 0.1, 0.1]);
+    let sut = map.with_unknown_occupied(lo, hi);
+    assert_eq!(sut.occupancy([0.7, 0.0, 0.0]), Occupancy::Free, "seen free");
+    assert_eq!(
+        sut.occupancy([1.0, 0.0, 0.0]),
+        Occupancy::Occupied,
+        "the wall"
+    );
+    assert_eq!(
+        sut.occupancy([1.2, 0.0, 0.0]),
+        Occupancy::Occupied,
+        "behind it, unseen"
+    );
+    assert_eq!(
+        sut.occupancy([1.2, 0.3, 0.0]),
+        Occupancy::Unknown,
+        "outside the box"
+    );
+    assert_eq!(
+        sut.occupancy([0.7, 0.5, 0.0]),
+        Occupancy::Unknown,
+        "outside the box"
+    );
+    assert_eq!(
+        map.occupancy([1.2, 0.0, 0.0]),
+        Occupancy::Unknown,
+        "the map is unchanged"
+    );
+    // Every voxel centre in the box is free or occupied now, none unknown.
+    let r = map.resolution();
+    let mut occupied = 0;
+    for i in 0..40 {
+        for j in 0..10 {
+            for k in 0..10 {
+                let p = [
+                    lo[0] + r * (i as f64 + 0.5),
+                    lo[1] + r * (j as f64 + 0.5),
+                    lo[2] + r * (k as f64 + 0.5),
+                ];
+                let o = sut.occupancy(p);
+                assert_ne!(o, Occupancy::Unknown, "{p:?}");
+                occupied += (o == Occupancy::Occupied) as usize;
+            }
+        }
+    }
+    assert!(occupied > 500, "{occupied} occupied voxels in the box");
+    // The grids answer for the copy: a ball behind the wall is not clear, one in front is.
+    let grids = sut.clearance().expect("occupied voxels");
+    assert!(!grids.clear([1.2, 0.0, 0.0], 0.01));
+    assert!(grids.clear([0.6, 0.0, 0.0], 0.05));
+    assert!(sut.sphere_collides([1.2, 0.0, 0.0], 0.01));
+    assert!(!sut.sphere_collides([0.6, 0.0, 0.0], 0.05));
+}

@@ -14,6 +14,7 @@ fn world(carve: Option<f64>) -> World {
         use_map: true,
         self_filter_padding: 0.03,
         carve_padding: carve,
+        unknown_obstacles: None,
     })
 }
 
@@ -220,4 +221,45 @@ fn attaching_moves_an_object_into_the_hand_and_refusals_change_nothing() {
         .unwrap();
     let snap = sut.snapshot();
     assert!(snap.scene.objects.is_empty() && snap.scene.attached.is_empty());
+}
+
+/// With a box of unknown space as an obstacle, planning avoids the box until the camera has
+/// seen through it; FLAME's map stays the map itself. Without the box, unknown space is free.
+#[test]
+fn unknown_space_in_the_configured_box_is_an_obstacle_until_seen() {
+    let robot = Robot::builtin("fetch").unwrap();
+    let params = |unknown| WorldParams {
+        map: MapParams::default(),
+        use_map: true,
+        self_filter_padding: 0.03,
+        carve_padding: Some(0.02),
+        unknown_obstacles: unknown,
+    };
+    let inside = [0.7, 0.0, 1.0];
+    let mut sut = World::new(&params(Some(([0.6, -0.1, 0.9], [0.8, 0.1, 1.1]))));
+    let snap = sut.snapshot();
+    assert!(
+        snap.env.sphere_collides(inside, 0.01),
+        "unseen: an obstacle"
+    );
+    assert!(
+        !snap.env.sphere_collides([0.3, 0.0, 1.0], 0.05),
+        "outside the box"
+    );
+    assert_eq!(
+        snap.map.occupancy(inside),
+        Occupancy::Unknown,
+        "FLAME's map"
+    );
+    // A wall at x = 1.5 seen from a camera at (0, 0, 1): its rays cross the box.
+    let wall: Vec<[f32; 3]> = (0..31)
+        .flat_map(|i| (0..31).map(move |j| [1.5, -0.3 + 0.02 * i as f32, -0.3 + 0.02 * j as f32]))
+        .collect();
+    sut.insert_cloud(&robot, &wall, &Pose::translation(0.0, 0.0, 1.0));
+    let snap = sut.snapshot();
+    assert!(!snap.env.sphere_collides(inside, 0.01), "seen free");
+    assert!(snap.env.sphere_collides([1.5, 0.0, 1.0], 0.01), "the wall");
+    // Without the box the same unseen space is free.
+    let snap = World::new(&params(None)).snapshot();
+    assert!(!snap.env.sphere_collides(inside, 0.01));
 }

@@ -561,6 +561,74 @@ impl OccupancyMap {
         keys.len()
     }
 
+    /// A copy of the map in which every voxel never observed whose centre lies in the box
+    /// `[lo, hi]` (metres, within the map's bounds) is occupied: the map planning avoids when
+    /// unknown space there counts as an obstacle. The copy shares the blocks it does not
+    /// write, and its clearance grids follow from this map's by the blocks it changed.
+    pub fn with_unknown_occupied(&self, lo: [f64; 3], hi: [f64; 3]) -> OccupancyMap {
+        let (mut lo, mut hi) = (lo, hi);
+        if let Some((blo, bhi)) = self.params.bounds {
+            for a in 0..3 {
+                lo[a] = lo[a].max(blo[a]);
+                hi[a] = hi[a].min(bhi[a]);
+            }
+        }
+        let mut out = self.clone();
+        // An empty box (or one with a NaN corner) makes nothing occupied.
+        if (0..3).any(|a| lo[a].partial_cmp(&hi[a]).is_none_or(|o| o.is_gt())) {
+            return out;
+        }
+        // Voxels whose centre lies in the box, per axis.
+        let half = self.params.resolution / 2.0;
+        let klo = self.key_of(lo.map(|v| v - half + self.params.resolution));
+        let khi = self.key_of(hi.map(|v| v - half));
+        if (0..3).any(|a| klo[a] > khi[a]) {
+            return out;
+        }
+        let (blo, bhi) = (klo.map(|v| v >> 2), khi.map(|v| v >> 2));
+        let max = self.max;
+        for bx in blo[0]..=bhi[0] {
+            for by in blo[1]..=bhi[1] {
+                for bz in blo[2]..=bhi[2] {
+                    let b = [bx, by, bz];
+                    // The block's leaves inside the box, as a mask.
+                    let span = |a: usize| {
+                        let first = (klo[a] - 4 * b[a]).max(0) as usize;
+                        let last = (khi[a] - 4 * b[a]).min(3) as usize;
+                        first..=last
+                    };
+                    let mut inside = 0u64;
+                    for x in span(0) {
+                        for y in span(1) {
+                            for z in span(2) {
+                                inside |= 1 << leaf_bit(x, y, z);
+                            }
+                        }
+                    }
+                    let known = self
+                        .index
+                        .get(&b)
+                        .map_or(0, |&i| self.blocks[i as usize].known);
+                    let unknown = inside & !known;
+                    if unknown == 0 {
+                        continue;
+                    }
+                    let blk = out.block_mut(b);
+                    let before = blk.occupied;
+                    let leaves = blk.expand();
+                    for bit in bits(unknown) {
+                        leaves[bit] = max;
+                    }
+                    blk.known |= unknown;
+                    blk.occupied |= unknown;
+                    let after = blk.occupied;
+                    out.note_mask_change(b, before, after);
+                }
+            }
+        }
+        out
+    }
+
     /// Sets a voxel to `occupied` (clamped log-odds), as reading a binary map does.
     pub fn set_voxel(&mut self, k: VoxelKey, occupied: bool) {
         let v = if occupied { self.max } else { self.min };
