@@ -9,8 +9,9 @@
 //! poses, and after each growth step one camera-sized cloud (320 × 240 points on a wall 1.5 m
 //! ahead) is folded in and snapshotted as the daemon's ingest thread does, `--repeats` times,
 //! once with the previous snapshot still held (as a plan in flight holds it) and once without.
-//! One line per size: `RESULT world_ingest blocks=<n> memory_mb=<f> held_ms=<f> free_ms=<f>`
-//! (medians).
+//! One line per size: `RESULT world_ingest blocks=<n> memory_mb=<f> held_ms=<f> free_ms=<f>
+//! unknown_box=<0|1>` (medians; with `--unknown-box`, unknown space in that box is an obstacle
+//! for planning, so each cloud also remakes the planner's copy of the map and its grids).
 
 use ember_engine::collision::Shape;
 use ember_engine::world::map::MapParams;
@@ -34,6 +35,10 @@ pub struct Args {
     /// Clouds measured per map size and mode.
     #[arg(long, default_value_t = 9)]
     repeats: usize,
+    /// For the ingest measurement: unknown space in this box is an obstacle, as emberd's
+    /// `planner.unknown_obstacle_min/max` make it (`X0,Y0,Z0,X1,Y1,Z1`, metres).
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    unknown_box: Option<Vec<f64>>,
 }
 
 /// `w × h` points on a wall `d` metres ahead of a sensor (optical frame: z forward), spanning
@@ -60,7 +65,10 @@ fn ingest(args: &Args) {
         },
         use_map: true,
         carve_padding: Some(0.02),
-        unknown_obstacles: None,
+        unknown_obstacles: args
+            .unknown_box
+            .as_ref()
+            .map(|b| ([b[0], b[1], b[2]], [b[3], b[4], b[5]])),
         self_filter_padding: 0.03,
     });
     let robot = ember_engine::robot::Robot::builtin("fetch").expect("built-in");
@@ -112,7 +120,8 @@ fn ingest(args: &Args) {
             320 * 240
         );
         println!(
-            "RESULT world_ingest blocks={blocks} memory_mb={memory_mb:.2} held_ms={held_ms:.3} free_ms={free_ms:.3}"
+            "RESULT world_ingest blocks={blocks} memory_mb={memory_mb:.2} held_ms={held_ms:.3} free_ms={free_ms:.3} unknown_box={}",
+            u8::from(args.unknown_box.is_some())
         );
     }
 }
@@ -130,6 +139,12 @@ fn object(k: usize, dx: f64) -> Object {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if let Some(b) = &args.unknown_box {
+        anyhow::ensure!(
+            b.len() == 6 && (0..3).all(|a| b[a] < b[a + 3]),
+            "--unknown-box takes X0,Y0,Z0,X1,Y1,Z1 with each min below its max, got {b:?}"
+        );
+    }
     let mut world = World::new(&WorldParams {
         map: MapParams::default(),
         use_map: false,
