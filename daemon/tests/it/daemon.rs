@@ -30,6 +30,17 @@ impl Daemon {
         Self::start_args(tag, &["--no-monitor"])
     }
 
+    /// A daemon of its own instance, not monitored, configured by `toml` (written to a file
+    /// in a temporary folder, returned for the test to remove).
+    pub fn start_configured(tag: &str, toml: &str) -> (Daemon, PathBuf) {
+        let dir = std::env::temp_dir().join(format!("ember-{tag}-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let config = dir.join("emberd.toml");
+        std::fs::write(&config, toml).unwrap();
+        let d = Self::start_args(tag, &["--no-monitor", "--config", config.to_str().unwrap()]);
+        (d, dir)
+    }
+
     /// A daemon of its own instance, with extra `ember run` arguments.
     pub fn start_args(tag: &str, extra: &[&str]) -> Daemon {
         let instance = format!("it-{tag}-{}", std::process::id());
@@ -411,14 +422,7 @@ fn assert_modes<'a>(files: impl IntoIterator<Item = &'a PathBuf>, expected: u32)
 
 #[test]
 fn the_configured_file_mode_applies_to_databases_and_recordings() {
-    let dir = std::env::temp_dir().join(format!("ember-mode-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let config = dir.join("emberd.toml");
-    std::fs::write(&config, "file_mode = \"0640\"\n").unwrap();
-    let mut d = Daemon::start_args(
-        "mode",
-        &["--no-monitor", "--config", config.to_str().unwrap()],
-    );
+    let (mut d, dir) = Daemon::start_configured("mode", "file_mode = \"0640\"\n");
     let client = d.client();
     publish_table(&client);
     wait_for(&client, "objects", |s| s.world_objects == 3);
@@ -545,19 +549,11 @@ fn sdk_examples_run_against_a_daemon() {
 
 #[test]
 fn unknown_space_in_the_configured_box_refuses_a_goal_there() {
-    let dir = std::env::temp_dir().join(format!("ember-unknown-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let config = dir.join("emberd.toml");
     // A box around the gripper's place at `goal_near_can` (tip at 0.66, 0.1, 0.86), which no
     // camera has seen.
-    std::fs::write(
-        &config,
-        "[planner]\nunknown_obstacle_min = [0.55, 0.0, 0.76]\nunknown_obstacle_max = [0.8, 0.2, 0.96]\n",
-    )
-    .unwrap();
-    let d = Daemon::start_args(
+    let (d, dir) = Daemon::start_configured(
         "unknown",
-        &["--no-monitor", "--config", config.to_str().unwrap()],
+        "[planner]\nunknown_obstacle_min = [0.55, 0.0, 0.76]\nunknown_obstacle_max = [0.8, 0.2, 0.96]\n",
     );
     let client = d.client();
     publish_table(&client);
@@ -715,17 +711,9 @@ fn many_clients_publish_and_plan_at_once() {
 
 #[test]
 fn a_client_beyond_the_limit_is_told_which_limit() {
-    let dir = std::env::temp_dir().join(format!("ember-limits-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let config = dir.join("emberd.toml");
-    std::fs::write(
-        &config,
-        "[limits]\npublishers = 2\nclients = 3\nobjects = 2\n",
-    )
-    .unwrap();
-    let d = Daemon::start_args(
+    let (d, dir) = Daemon::start_configured(
         "limits",
-        &["--no-monitor", "--config", config.to_str().unwrap()],
+        "[limits]\npublishers = 2\nclients = 3\nobjects = 2\n",
     );
     let (a, _b) = (d.client(), d.client());
     let e = match Client::connect(&d.instance) {

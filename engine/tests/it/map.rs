@@ -265,27 +265,15 @@ fn unknown_space_in_a_box_becomes_occupied_in_a_copy() {
     map.insert_cloud(&wall(1.0, 0.0, 0.2), &Pose::identity(), None);
     let (lo, hi) = ([0.5, -0.1, -0.1], [1.3, 0.1, 0.1]);
     let sut = map.with_unknown_occupied(lo, hi);
-    assert_eq!(sut.occupancy([0.7, 0.0, 0.0]), Occupancy::Free, "seen free");
-    assert_eq!(
-        sut.occupancy([1.0, 0.0, 0.0]),
-        Occupancy::Occupied,
-        "the wall"
-    );
-    assert_eq!(
-        sut.occupancy([1.2, 0.0, 0.0]),
-        Occupancy::Occupied,
-        "behind it, unseen"
-    );
-    assert_eq!(
-        sut.occupancy([1.2, 0.3, 0.0]),
-        Occupancy::Unknown,
-        "outside the box"
-    );
-    assert_eq!(
-        sut.occupancy([0.7, 0.5, 0.0]),
-        Occupancy::Unknown,
-        "outside the box"
-    );
+    for (p, state, what) in [
+        ([0.7, 0.0, 0.0], Occupancy::Free, "seen free"),
+        ([1.0, 0.0, 0.0], Occupancy::Occupied, "the wall"),
+        ([1.2, 0.0, 0.0], Occupancy::Occupied, "behind it, unseen"),
+        ([1.2, 0.3, 0.0], Occupancy::Unknown, "outside the box"),
+        ([0.7, 0.5, 0.0], Occupancy::Unknown, "outside the box"),
+    ] {
+        assert_eq!(sut.occupancy(p), state, "{what} at {p:?}");
+    }
     assert_eq!(
         map.occupancy([1.2, 0.0, 0.0]),
         Occupancy::Unknown,
