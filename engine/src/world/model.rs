@@ -153,16 +153,9 @@ const VOXELISE_MAX: i64 = 1 << 20;
 /// whose centre ball touches it, within the map's bounds; whole blocks touched by the block's
 /// ball past [`VOXELISE_MAX`] voxels.
 fn voxelise(map: &OccupancyMap, alone: &Environment, lo: [f64; 3], hi: [f64; 3]) -> Vec<Octobox> {
-    let (mut lo, mut hi) = (lo, hi);
-    if let Some((blo, bhi)) = map.params().bounds {
-        for i in 0..3 {
-            lo[i] = lo[i].max(blo[i]);
-            hi[i] = hi[i].min(bhi[i]);
-        }
-    }
-    if (0..3).any(|i| lo[i] > hi[i]) {
+    let Some((lo, hi)) = map.clip_to_bounds(lo, hi) else {
         return Vec::new();
-    }
+    };
     let (klo, khi) = (map.key_of(lo), map.key_of(hi));
     let voxels: i64 = (0..3).map(|i| (khi[i] - klo[i] + 1) as i64).product();
     let mut blocks: rustc_hash::FxHashMap<BlockKey, u64> = Default::default();

@@ -561,11 +561,9 @@ impl OccupancyMap {
         keys.len()
     }
 
-    /// A copy of the map in which every voxel never observed whose centre lies in the box
-    /// `[lo, hi]` (metres, within the map's bounds) is occupied: the map planning avoids when
-    /// unknown space there counts as an obstacle. The copy shares the blocks it does not
-    /// write, and its clearance grids follow from this map's by the blocks it changed.
-    pub fn with_unknown_occupied(&self, lo: [f64; 3], hi: [f64; 3]) -> OccupancyMap {
+    /// The box `[lo, hi]` (metres) cut to the map's bounds; `None` when nothing of it is left
+    /// (or a corner is not a number).
+    pub fn clip_to_bounds(&self, lo: [f64; 3], hi: [f64; 3]) -> Option<([f64; 3], [f64; 3])> {
         let (mut lo, mut hi) = (lo, hi);
         if let Some((blo, bhi)) = self.params.bounds {
             for a in 0..3 {
@@ -573,12 +571,19 @@ impl OccupancyMap {
                 hi[a] = hi[a].min(bhi[a]);
             }
         }
+        (0..3).all(|a| lo[a] <= hi[a]).then_some((lo, hi))
+    }
+
+    /// A copy of the map in which every voxel never observed whose centre lies in the box
+    /// `[lo, hi]` (metres, within the map's bounds) is occupied: the map planning avoids when
+    /// unknown space there counts as an obstacle. The copy shares the blocks it does not
+    /// write, and its clearance grids follow from this map's by the blocks it changed.
+    pub fn with_unknown_occupied(&self, lo: [f64; 3], hi: [f64; 3]) -> OccupancyMap {
         let mut out = self.clone();
-        // An empty box (or one with a NaN corner) makes nothing occupied.
-        if (0..3).any(|a| lo[a].partial_cmp(&hi[a]).is_none_or(|o| o.is_gt())) {
+        let Some((lo, hi)) = self.clip_to_bounds(lo, hi) else {
             return out;
-        }
-        // Voxels whose centre lies in the box, per axis.
+        };
+        // The voxels whose centre lies in the box.
         let half = self.params.resolution / 2.0;
         let klo = self.key_of(lo.map(|v| v - half + self.params.resolution));
         let khi = self.key_of(hi.map(|v| v - half));
@@ -586,43 +591,18 @@ impl OccupancyMap {
             return out;
         }
         let (blo, bhi) = (klo.map(|v| v >> 2), khi.map(|v| v >> 2));
-        let max = self.max;
         for bx in blo[0]..=bhi[0] {
             for by in blo[1]..=bhi[1] {
                 for bz in blo[2]..=bhi[2] {
                     let b = [bx, by, bz];
-                    // The block's leaves inside the box, as a mask.
-                    let span = |a: usize| {
-                        let first = (klo[a] - 4 * b[a]).max(0) as usize;
-                        let last = (khi[a] - 4 * b[a]).min(3) as usize;
-                        first..=last
-                    };
-                    let mut inside = 0u64;
-                    for x in span(0) {
-                        for y in span(1) {
-                            for z in span(2) {
-                                inside |= 1 << leaf_bit(x, y, z);
-                            }
-                        }
-                    }
                     let known = self
                         .index
                         .get(&b)
                         .map_or(0, |&i| self.blocks[i as usize].known);
-                    let unknown = inside & !known;
-                    if unknown == 0 {
-                        continue;
+                    let unknown = leaves_within(b, klo, khi) & !known;
+                    if unknown != 0 {
+                        out.set_leaves(b, unknown, self.max);
                     }
-                    let blk = out.block_mut(b);
-                    let before = blk.occupied;
-                    let leaves = blk.expand();
-                    for bit in bits(unknown) {
-                        leaves[bit] = max;
-                    }
-                    blk.known |= unknown;
-                    blk.occupied |= unknown;
-                    let after = blk.occupied;
-                    out.note_mask_change(b, before, after);
                 }
             }
         }
@@ -637,16 +617,23 @@ impl OccupancyMap {
 
     fn set_logodds(&mut self, k: VoxelKey, v: f32) {
         let (b, bit) = Self::split(k);
+        self.set_leaves(b, 1 << bit, v);
+    }
+
+    /// Sets the leaves `mask` of block `b` (created when missing) to log-odds `v`, known.
+    fn set_leaves(&mut self, b: BlockKey, mask: u64, v: f32) {
         let threshold = self.threshold;
         let blk = self.block_mut(b);
         let before = blk.occupied;
         let leaves = blk.expand();
-        leaves[bit] = v;
-        blk.known |= 1 << bit;
+        for bit in bits(mask) {
+            leaves[bit] = v;
+        }
+        blk.known |= mask;
         if v > threshold {
-            blk.occupied |= 1 << bit;
+            blk.occupied |= mask;
         } else {
-            blk.occupied &= !(1 << bit);
+            blk.occupied &= !mask;
         }
         let after = blk.occupied;
         self.note_mask_change(b, before, after);
@@ -710,6 +697,21 @@ pub(crate) fn fast_floor(v: f64) -> i32 {
 }
 
 /// Indices of the set bits of `m`, ascending.
+/// The leaves of block `b` whose keys lie within `[klo, khi]` on every axis, as a mask.
+fn leaves_within(b: BlockKey, klo: VoxelKey, khi: VoxelKey) -> u64 {
+    // Per axis, the leaf offsets (0–3) inside the range.
+    let span = |a: usize| (klo[a] - 4 * b[a]).max(0)..=(khi[a] - 4 * b[a]).min(3);
+    let mut mask = 0u64;
+    for x in span(0) {
+        for y in span(1) {
+            for z in span(2) {
+                mask |= 1 << leaf_bit(x as usize, y as usize, z as usize);
+            }
+        }
+    }
+    mask
+}
+
 pub(crate) fn bits(mut m: u64) -> impl Iterator<Item = usize> {
     std::iter::from_fn(move || {
         (m != 0).then(|| {
