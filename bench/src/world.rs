@@ -10,8 +10,10 @@
 //! ahead) is folded in and snapshotted as the daemon's ingest thread does, `--repeats` times,
 //! once with the previous snapshot still held (as a plan in flight holds it) and once without.
 //! One line per size: `RESULT world_ingest blocks=<n> memory_mb=<f> held_ms=<f> free_ms=<f>
-//! unknown_box=<0|1>` (medians; with `--unknown-box`, unknown space in that box is an obstacle
-//! for planning, so each cloud also remakes the planner's copy of the map and its grids).
+//! unknown_box=<0|1> joints=<0|1>` (medians; with `--unknown-box`, unknown space in that box is
+//! an obstacle for planning, so each cloud also remakes the planner's copy of the map and its
+//! grids; with `--joints`, each cloud is self-filtered at that joint state and the robot's
+//! volume in the box is observed free).
 
 use ember_engine::collision::Shape;
 use ember_engine::world::map::MapParams;
@@ -39,6 +41,11 @@ pub struct Args {
     /// `planner.unknown_obstacle_min/max` make it (`X0,Y0,Z0,X1,Y1,Z1`, metres).
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     unknown_box: Option<Vec<f64>>,
+    /// For the ingest measurement: the built-in Fetch's joint state (8 values), so each cloud
+    /// is self-filtered at it and, with `--unknown-box`, the robot's volume in the box is
+    /// observed free, as emberd does once joint states come in.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    joints: Option<Vec<f64>>,
 }
 
 /// `w × h` points on a wall `d` metres ahead of a sensor (optical frame: z forward), spanning
@@ -56,7 +63,7 @@ fn wall(w: usize, h: usize, d: f32, span: f32, phase: f32) -> Vec<[f32; 3]> {
 }
 
 /// The ingest measurement (see the module docs).
-fn ingest(args: &Args) {
+fn ingest(args: &Args) -> anyhow::Result<()> {
     let mut world = World::new(&WorldParams {
         map: MapParams {
             bounds: Some(([-2.0, -2.0, -0.1], [3.0, 2.0, 2.5])),
@@ -72,6 +79,10 @@ fn ingest(args: &Args) {
         self_filter_padding: 0.03,
     });
     let robot = ember_engine::robot::Robot::builtin("fetch").expect("built-in");
+    if let Some(q) = &args.joints {
+        robot.validate(q)?;
+        world.set_joints(q.clone());
+    }
     // A head camera looking ahead (optical z along the base's x).
     let camera = Pose::translation(0.15, 0.0, 1.0)
         * Pose::rotation(nalgebra::Vector3::y() * std::f64::consts::FRAC_PI_2);
@@ -120,10 +131,12 @@ fn ingest(args: &Args) {
             320 * 240
         );
         println!(
-            "RESULT world_ingest blocks={blocks} memory_mb={memory_mb:.2} held_ms={held_ms:.3} free_ms={free_ms:.3} unknown_box={}",
-            u8::from(args.unknown_box.is_some())
+            "RESULT world_ingest blocks={blocks} memory_mb={memory_mb:.2} held_ms={held_ms:.3} free_ms={free_ms:.3} unknown_box={} joints={}",
+            u8::from(args.unknown_box.is_some()),
+            u8::from(args.joints.is_some())
         );
     }
+    Ok(())
 }
 
 fn object(k: usize, dx: f64) -> Object {
@@ -172,6 +185,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "RESULT world objects={} pairs={pairs} add_ms={add_ms:.2} update_snapshot_ms={update_ms:.2}",
         args.objects
     );
-    ingest(&args);
+    ingest(&args)?;
     Ok(())
 }

@@ -88,7 +88,8 @@ pub struct WorldParams {
     pub carve_padding: Option<f64>,
     /// A box (base frame, metres: min and max corners) in which space never observed is an
     /// obstacle for planning, as occupied voxels are (with `use_map`); `None`: unknown space is
-    /// free everywhere (OctoMap's and MoveIt's convention).
+    /// free everywhere (OctoMap's and MoveIt's convention). The robot's own volume there is
+    /// observed free with each cloud (see [`World::insert_cloud`]).
     pub unknown_obstacles: Option<([f64; 3], [f64; 3])>,
 }
 
@@ -392,7 +393,9 @@ impl World {
     }
 
     /// Folds a cloud into the map, dropping the robot's own points at the latest joint state
-    /// (and non-finite ones); says what was folded in.
+    /// (and non-finite ones); says what was folded in. With
+    /// [`WorldParams::unknown_obstacles`], the unknown voxels in the box that the robot's
+    /// padded spheres touch are observed free.
     pub fn insert_cloud(
         &mut self,
         robot: &Robot,
@@ -412,6 +415,12 @@ impl World {
         };
         let map = Arc::make_mut(&mut self.map);
         let report = map.insert_cloud_masked(points, sensor_pose, &mask);
+        // Where unknown space is an obstacle, the space the self-filter gives the robot (which
+        // no point there can ever mark occupied) is observed free: the robot is there, so
+        // nothing else is, and a start in the box is not refused for its own unseen volume.
+        if let (Some((lo, hi)), Some(robot)) = (self.unknown, &filter) {
+            map.free_unknown_touched(robot.balls(), lo, hi);
+        }
         if self.use_map {
             map.refresh_clearance();
         }

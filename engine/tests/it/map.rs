@@ -304,3 +304,42 @@ fn unknown_space_in_a_box_becomes_occupied_in_a_copy() {
     assert!(sut.sphere_collides([1.2, 0.0, 0.0], 0.01));
     assert!(!sut.sphere_collides([0.6, 0.0, 0.0], 0.05));
 }
+
+/// Unknown voxels a ball touches inside a box are observed free (one miss), and only those:
+/// seen voxels keep their state, unknown ones beyond the ball or outside the box stay unknown.
+#[test]
+fn unknown_voxels_a_ball_touches_in_a_box_become_free() {
+    let mut sut = OccupancyMap::new(MapParams::default());
+    // A wall at x = 1 seen from the origin; a ball behind it, reaching into the wall.
+    sut.insert_cloud(&wall(1.0, 0.0, 0.2), &Pose::identity(), None);
+    let (lo, hi) = ([0.5, -0.2, -0.2], [1.3, 0.0, 0.2]);
+    let ball = ([1.1, 0.0, 0.0], 0.08);
+    let marked = sut.free_unknown_touched([&ball], lo, hi);
+    for (p, state, what) in [
+        (
+            [1.1, -0.02, 0.0],
+            Occupancy::Free,
+            "behind the wall, in the ball",
+        ),
+        (
+            [1.16, -0.04, 0.04],
+            Occupancy::Free,
+            "the ball touches its cube",
+        ),
+        ([1.0, 0.0, 0.0], Occupancy::Occupied, "the wall stays"),
+        (
+            [1.1, 0.05, 0.0],
+            Occupancy::Unknown,
+            "in the ball, outside the box",
+        ),
+        (
+            [1.25, -0.15, 0.0],
+            Occupancy::Unknown,
+            "in the box, beyond the ball",
+        ),
+    ] {
+        assert_eq!(sut.occupancy(p), state, "{what} at {p:?}");
+    }
+    assert!(marked > 20, "{marked} marked");
+    assert_eq!(sut.free_unknown_touched([&ball], lo, hi), 0, "once only");
+}

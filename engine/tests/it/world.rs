@@ -1,7 +1,7 @@
 //! The world model: tracked objects carved out of the map, cleared at once, voxelised for FLAME;
 //! objects the robot holds.
 
-use ember_engine::collision::Shape;
+use ember_engine::collision::{Shape, SphereChecker};
 use ember_engine::robot::Robot;
 use ember_engine::world::map::{MapParams, Occupancy};
 use ember_engine::world::model::{ChangeError, ObjectChange, World, WorldParams};
@@ -262,4 +262,58 @@ fn unknown_space_in_the_configured_box_is_an_obstacle_until_seen() {
     // Without the box the same unseen space is free.
     let snap = World::new(&params(None)).snapshot();
     assert!(!snap.env.sphere_collides(inside, 0.01));
+}
+
+/// Where unknown space is an obstacle, the robot's own volume in the box is observed free with
+/// each cloud (the self-filter's space: no point can mark it occupied): a start whose arm lies
+/// in the unseen box is valid after a cloud whose rays never crossed the box, while unseen
+/// space beside the arm stays an obstacle. Without a joint state nothing is freed.
+#[test]
+fn the_robots_own_volume_in_the_unknown_box_is_free_after_a_cloud() {
+    let robot = Robot::builtin("fetch").unwrap();
+    // The arm straight out in front, the torso a little up.
+    let q = vec![0.2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+    let tip = robot.tip_pose(&q).unwrap().translation.vector;
+    let (lo, hi) = (
+        [tip.x - 0.15, tip.y - 0.15, tip.z - 0.15],
+        [tip.x + 0.15, tip.y + 0.15, tip.z + 0.15],
+    );
+    let params = WorldParams {
+        map: MapParams::default(),
+        use_map: true,
+        self_filter_padding: 0.03,
+        carve_padding: Some(0.02),
+        unknown_obstacles: Some((lo, hi)),
+    };
+    // A patch behind the camera's back: its rays never reach the box.
+    let away = patch(-1.5, 0.0, 5);
+    let camera = Pose::translation(0.0, 0.0, 1.0);
+    let valid = |world: &World| {
+        let snap = world.snapshot();
+        SphereChecker::new(&robot, &snap.env).is_valid(&q)
+    };
+    let mut sut = World::new(&params);
+    sut.set_joints(q.clone());
+    assert!(
+        !valid(&sut),
+        "before a cloud the arm stands in unseen space"
+    );
+    sut.insert_cloud(&robot, &away, &camera);
+    assert!(valid(&sut), "the arm's own volume is observed free");
+    // Unseen space in the box away from the arm is still an obstacle.
+    let snap = sut.snapshot();
+    let corner = [lo[0] + 0.02, lo[1] + 0.02, lo[2] + 0.02];
+    assert!(
+        snap.env.sphere_collides(corner, 0.005),
+        "unseen beside the arm"
+    );
+    assert_eq!(
+        snap.map.occupancy(tip.into()),
+        Occupancy::Free,
+        "FLAME's map too"
+    );
+    // No joint state: no self-filter, nothing freed.
+    let mut blind = World::new(&params);
+    blind.insert_cloud(&robot, &away, &camera);
+    assert!(!valid(&blind));
 }

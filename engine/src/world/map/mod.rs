@@ -574,22 +574,25 @@ impl OccupancyMap {
         (0..3).all(|a| lo[a] <= hi[a]).then_some((lo, hi))
     }
 
+    /// The keys `[klo, khi]` of the voxels whose centre lies in the box `[lo, hi]` (metres)
+    /// cut to the map's bounds; `None` when there are none.
+    fn keys_centred_in(&self, lo: [f64; 3], hi: [f64; 3]) -> Option<(VoxelKey, VoxelKey)> {
+        let (lo, hi) = self.clip_to_bounds(lo, hi)?;
+        let half = self.params.resolution / 2.0;
+        let klo = self.key_of(lo.map(|v| v - half + self.params.resolution));
+        let khi = self.key_of(hi.map(|v| v - half));
+        (0..3).all(|a| klo[a] <= khi[a]).then_some((klo, khi))
+    }
+
     /// A copy of the map in which every voxel never observed whose centre lies in the box
     /// `[lo, hi]` (metres, within the map's bounds) is occupied: the map planning avoids when
     /// unknown space there counts as an obstacle. The copy shares the blocks it does not
     /// write, and its clearance grids follow from this map's by the blocks it changed.
     pub fn with_unknown_occupied(&self, lo: [f64; 3], hi: [f64; 3]) -> OccupancyMap {
         let mut out = self.clone();
-        let Some((lo, hi)) = self.clip_to_bounds(lo, hi) else {
+        let Some((klo, khi)) = self.keys_centred_in(lo, hi) else {
             return out;
         };
-        // The voxels whose centre lies in the box.
-        let half = self.params.resolution / 2.0;
-        let klo = self.key_of(lo.map(|v| v - half + self.params.resolution));
-        let khi = self.key_of(hi.map(|v| v - half));
-        if (0..3).any(|a| klo[a] > khi[a]) {
-            return out;
-        }
         let (blo, bhi) = (klo.map(|v| v >> 2), khi.map(|v| v >> 2));
         for bx in blo[0]..=bhi[0] {
             for by in blo[1]..=bhi[1] {
@@ -607,6 +610,43 @@ impl OccupancyMap {
             }
         }
         out
+    }
+
+    /// Observes free, as one ray through it would (the log-odds of a miss), every voxel never
+    /// observed whose centre lies in the box `[lo, hi]` and whose cube one of `balls` (centre,
+    /// radius, metres) touches: space the robot fills, where nothing else can be. Returns how
+    /// many it marked.
+    pub fn free_unknown_touched<'a>(
+        &mut self,
+        balls: impl IntoIterator<Item = &'a ([f64; 3], f64)>,
+        lo: [f64; 3],
+        hi: [f64; 3],
+    ) -> usize {
+        let Some((klo, khi)) = self.keys_centred_in(lo, hi) else {
+            return 0;
+        };
+        let mut marked = 0;
+        for &(c, r) in balls {
+            let (blo, bhi) = (self.key_of(c.map(|v| v - r)), self.key_of(c.map(|v| v + r)));
+            let (blo, bhi) = (
+                std::array::from_fn::<_, 3, _>(|a| blo[a].max(klo[a])),
+                std::array::from_fn::<_, 3, _>(|a| bhi[a].min(khi[a])),
+            );
+            for x in blo[0]..=bhi[0] {
+                for y in blo[1]..=bhi[1] {
+                    for z in blo[2]..=bhi[2] {
+                        let k = [x, y, z];
+                        if self.voxel_occupancy(k) == Occupancy::Unknown
+                            && self.voxel_gap2(c, self.voxel_center(k)) <= r * r
+                        {
+                            self.set_logodds(k, self.miss);
+                            marked += 1;
+                        }
+                    }
+                }
+            }
+        }
+        marked
     }
 
     /// Sets a voxel to `occupied` (clamped log-odds), as reading a binary map does.
