@@ -627,14 +627,13 @@ impl OccupancyMap {
         };
         let mut marked = 0;
         for &(c, r) in balls {
-            let (blo, bhi) = (self.key_of(c.map(|v| v - r)), self.key_of(c.map(|v| v + r)));
-            let (blo, bhi) = (
-                std::array::from_fn::<_, 3, _>(|a| blo[a].max(klo[a])),
-                std::array::from_fn::<_, 3, _>(|a| bhi[a].min(khi[a])),
-            );
-            for x in blo[0]..=bhi[0] {
-                for y in blo[1]..=bhi[1] {
-                    for z in blo[2]..=bhi[2] {
+            // The voxels of the ball's box, within the box's.
+            let (vlo, vhi) = (self.key_of(c.map(|v| v - r)), self.key_of(c.map(|v| v + r)));
+            let vlo: VoxelKey = std::array::from_fn(|a| vlo[a].max(klo[a]));
+            let vhi: VoxelKey = std::array::from_fn(|a| vhi[a].min(khi[a]));
+            for x in vlo[0]..=vhi[0] {
+                for y in vlo[1]..=vhi[1] {
+                    for z in vlo[2]..=vhi[2] {
                         let k = [x, y, z];
                         if self.voxel_occupancy(k) == Occupancy::Unknown
                             && self.voxel_gap2(c, self.voxel_center(k)) <= r * r
