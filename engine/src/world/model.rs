@@ -138,7 +138,8 @@ pub struct World {
     use_map: bool,
     padding: f64,
     carve: Option<f64>,
-    /// See [`WorldParams::unknown_obstacles`].
+    /// See [`WorldParams::unknown_obstacles`]; `None` without `use_map` (planning ignores
+    /// the map then).
     unknown: Option<([f64; 3], [f64; 3])>,
     /// With `unknown`: the map with the unknown space in that box occupied, made after each
     /// change of the map (what planning avoids; FLAME and monitoring see the map itself).
@@ -207,7 +208,7 @@ impl World {
             use_map: params.use_map,
             padding: params.self_filter_padding,
             carve: params.carve_padding,
-            unknown: params.unknown_obstacles,
+            unknown: params.unknown_obstacles.filter(|_| params.use_map),
             planned_map: None,
             objects_version: 0,
         };
@@ -218,7 +219,7 @@ impl World {
     /// Brings what planning sees of the map up to date after the map changed: with
     /// [`WorldParams::unknown_obstacles`], the map with the unknown space in the box occupied.
     fn map_changed(&mut self) {
-        if let (Some((lo, hi)), true) = (self.unknown, self.use_map) {
+        if let Some((lo, hi)) = self.unknown {
             let mut planned = self.map.with_unknown_occupied(lo, hi);
             planned.refresh_clearance();
             self.planned_map = Some(Arc::new(planned));

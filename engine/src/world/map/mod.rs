@@ -735,7 +735,6 @@ pub(crate) fn fast_floor(v: f64) -> i32 {
     t - ((t as f64) > v) as i32
 }
 
-/// Indices of the set bits of `m`, ascending.
 /// The leaves of block `b` whose keys lie within `[klo, khi]` on every axis, as a mask.
 fn leaves_within(b: BlockKey, klo: VoxelKey, khi: VoxelKey) -> u64 {
     // Per axis, the leaf offsets (0–3) inside the range.
@@ -751,6 +750,7 @@ fn leaves_within(b: BlockKey, klo: VoxelKey, khi: VoxelKey) -> u64 {
     mask
 }
 
+/// Indices of the set bits of `m`, ascending.
 pub(crate) fn bits(mut m: u64) -> impl Iterator<Item = usize> {
     std::iter::from_fn(move || {
         (m != 0).then(|| {
