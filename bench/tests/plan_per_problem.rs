@@ -63,3 +63,64 @@ fn per_problem_lines_name_each_problem_and_agree_with_the_result_line() {
         "the RESULT lines end the output:\n{stdout}"
     );
 }
+
+/// `per_problem_vs_vamp.py --truth` joins real `--per-problem` output with VAMP's lines and an
+/// `fcl_validity.py` CSV: problem 3's start and goal free on the meshes, problem 8's goal in
+/// contact; VAMP solved both (hand-written lines), Ember solves both here.
+#[test]
+fn solved_problems_are_counted_against_the_ground_truth() {
+    let dir = common::problem_folder("fetch_truth_fetch");
+    let stdout = common::ember_bench([
+        "plan".as_ref(),
+        "--per-problem".as_ref(),
+        "--time-limit".as_ref(),
+        "5".as_ref(),
+        "--problems".as_ref(),
+        dir.as_os_str(),
+    ]);
+    let scratch = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));
+    let (ember, vamp, truth) = (
+        scratch.join("truth_ember.txt"),
+        scratch.join("truth_vamp.txt"),
+        scratch.join("truth.csv"),
+    );
+    std::fs::write(&ember, &stdout).expect("ember.txt");
+    std::fs::write(
+        &vamp,
+        "PROBLEM set=fetch_truth index=3 solved=1 iterations=10 tree_nodes=4 us=100.0\n\
+         PROBLEM set=fetch_truth index=8 solved=1 iterations=20 tree_nodes=6 us=300.0\n",
+    )
+    .expect("vamp.txt");
+    std::fs::write(
+        &truth,
+        "set,index,start_free,goal_free,start_contact,goal_contact\n\
+         fetch_truth_fetch,3,1,1,,\n\
+         fetch_truth_fetch,8,1,0,,self:head_pan_link|upperarm_roll_link\n",
+    )
+    .expect("truth.csv");
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/per_problem_vs_vamp.py");
+    let out = std::process::Command::new("python3")
+        .arg(script)
+        .args([&ember, &vamp])
+        .arg("--truth")
+        .arg(&truth)
+        .output()
+        .expect("python3 runs");
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("RESULT solved_vs_truth "))
+        .unwrap_or_else(|| panic!("no solved_vs_truth line:\n{text}"));
+    use common::key;
+    assert_eq!(key(line, "set"), "fetch_truth", "{line}");
+    assert_eq!(key(line, "truth_valid"), "1", "{line}");
+    assert_eq!(key(line, "vamp_solved_valid"), "1", "{line}");
+    assert_eq!(key(line, "vamp_solved_invalid"), "1", "{line}");
+    assert_eq!(key(line, "ember_solved_valid"), "1", "{line}");
+    assert_eq!(key(line, "ember_solved_invalid"), "1", "{line}");
+}
