@@ -13,7 +13,7 @@ common problems only, where `side_by_side.sh` takes each planner's median over t
 solves).
 With --truth (a CSV as `../shared/tools/fcl_validity.py` writes, e.g. `target/fcl_truth.csv`
 from `ember-bench validity`: start and goal checked on the meshes by FCL, MoveIt's checker), one
-more line per set counts the solved problems against that ground truth:
+more line per set the CSV holds counts the solved problems against that ground truth:
   RESULT solved_vs_truth set= truth_valid= ember_solved_valid= vamp_solved_valid=
       ember_solved_invalid= vamp_solved_invalid=
 (`_valid`: solved problems whose start and goal are free on the meshes; `_invalid`: solved
@@ -66,7 +66,7 @@ def main():
     vamp = problems(sys.argv[2], "us", 1e3)
     free = truth(sys.argv[sys.argv.index("--truth") + 1]) if "--truth" in sys.argv else None
     for name in sorted(set(ember) & set(vamp)):
-        if free is not None:
+        if free is not None and name in free:
             print(solved_vs_truth(name, ember[name], vamp[name], free[name]))
         common = sorted(set(ember[name]) & set(vamp[name]))
         if not common:
