@@ -5,18 +5,22 @@
 
 mod common;
 
-#[test]
-fn per_problem_lines_name_each_problem_and_agree_with_the_result_line() {
-    let dir = common::problem_folder("plan_per_problem");
-    let dir_arg = dir.as_os_str().to_owned();
-    let stdout = common::ember_bench([
+/// `ember-bench plan --per-problem` on the two fixture problems, in a folder named `set`.
+fn per_problem(set: &str) -> String {
+    let dir = common::problem_folder(set);
+    common::ember_bench([
         "plan".as_ref(),
         "--per-problem".as_ref(),
         "--time-limit".as_ref(),
         "5".as_ref(),
         "--problems".as_ref(),
-        dir_arg.as_os_str(),
-    ]);
+        dir.as_os_str(),
+    ])
+}
+
+#[test]
+fn per_problem_lines_name_each_problem_and_agree_with_the_result_line() {
+    let stdout = per_problem("plan_per_problem");
     let problems: Vec<&str> = stdout
         .lines()
         .filter(|l| l.starts_with("PROBLEM "))
@@ -69,15 +73,7 @@ fn per_problem_lines_name_each_problem_and_agree_with_the_result_line() {
 /// contact; VAMP solved both (hand-written lines), Ember solves both here.
 #[test]
 fn solved_problems_are_counted_against_the_ground_truth() {
-    let dir = common::problem_folder("fetch_truth_fetch");
-    let stdout = common::ember_bench([
-        "plan".as_ref(),
-        "--per-problem".as_ref(),
-        "--time-limit".as_ref(),
-        "5".as_ref(),
-        "--problems".as_ref(),
-        dir.as_os_str(),
-    ]);
+    let stdout = per_problem("fetch_truth_fetch");
     let scratch = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));
     let (ember, vamp, truth) = (
         scratch.join("truth_ember.txt"),
