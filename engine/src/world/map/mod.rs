@@ -590,9 +590,15 @@ impl OccupancyMap {
     /// write, and its clearance grids follow from this map's by the blocks it changed.
     pub fn with_unknown_occupied(&self, lo: [f64; 3], hi: [f64; 3]) -> OccupancyMap {
         let mut out = self.clone();
-        let Some((klo, khi)) = self.keys_centred_in(lo, hi) else {
-            return out;
-        };
+        if let Some((klo, khi)) = self.keys_centred_in(lo, hi) {
+            self.unknown_leaves(klo, khi, |b, unknown| out.set_leaves(b, unknown, self.max));
+        }
+        out
+    }
+
+    /// Calls `f` with each block meeting the voxel keys `[klo, khi]` and the mask of its leaves
+    /// in that range never observed, where there are any.
+    fn unknown_leaves(&self, klo: VoxelKey, khi: VoxelKey, mut f: impl FnMut(BlockKey, u64)) {
         let (blo, bhi) = (klo.map(|v| v >> 2), khi.map(|v| v >> 2));
         for bx in blo[0]..=bhi[0] {
             for by in blo[1]..=bhi[1] {
@@ -604,12 +610,11 @@ impl OccupancyMap {
                         .map_or(0, |&i| self.blocks[i as usize].known);
                     let unknown = leaves_within(b, klo, khi) & !known;
                     if unknown != 0 {
-                        out.set_leaves(b, unknown, self.max);
+                        f(b, unknown);
                     }
                 }
             }
         }
-        out
     }
 
     /// Observes free, as one ray through it would (the log-odds of a miss), every voxel never
@@ -625,24 +630,29 @@ impl OccupancyMap {
         let Some((klo, khi)) = self.keys_centred_in(lo, hi) else {
             return 0;
         };
-        let mut marked = 0;
+        let (mut marked, mut touched) = (0, Vec::new());
         for &(c, r) in balls {
             // The voxels of the ball's box, within the box's.
             let (vlo, vhi) = (self.key_of(c.map(|v| v - r)), self.key_of(c.map(|v| v + r)));
             let vlo: VoxelKey = std::array::from_fn(|a| vlo[a].max(klo[a]));
             let vhi: VoxelKey = std::array::from_fn(|a| vhi[a].min(khi[a]));
-            for x in vlo[0]..=vhi[0] {
-                for y in vlo[1]..=vhi[1] {
-                    for z in vlo[2]..=vhi[2] {
-                        let k = [x, y, z];
-                        if self.voxel_occupancy(k) == Occupancy::Unknown
-                            && self.voxel_gap2(c, self.voxel_center(k)) <= r * r
-                        {
-                            self.set_logodds(k, self.miss);
-                            marked += 1;
-                        }
-                    }
+            if (0..3).any(|a| vlo[a] > vhi[a]) {
+                continue;
+            }
+            touched.clear();
+            self.unknown_leaves(vlo, vhi, |b, unknown| {
+                let mask = bits(unknown)
+                    .filter(|&bit| {
+                        self.voxel_gap2(c, self.voxel_center(voxel_key(b, bit))) <= r * r
+                    })
+                    .fold(0u64, |m, bit| m | 1 << bit);
+                if mask != 0 {
+                    touched.push((b, mask));
                 }
+            });
+            for &(b, mask) in &touched {
+                self.set_leaves(b, mask, self.miss);
+                marked += mask.count_ones() as usize;
             }
         }
         marked
