@@ -120,3 +120,63 @@ fn solved_problems_are_counted_against_the_ground_truth() {
     assert_eq!(key(line, "ember_solved_valid"), "1", "{line}");
     assert_eq!(key(line, "ember_solved_invalid"), "1", "{line}");
 }
+
+#[test]
+fn interleaved_rounds_keep_each_problems_fastest_time() {
+    // Ember's per-problem lines as `ember-bench plan --per-problem` prints them, parsed by the
+    // interleaved script; VAMP's rounds hand-written: problem 3 fastest in round one, 8 in
+    // round two, 5 solved in round one only (left out of the best median).
+    let stdout = per_problem("interleaved");
+    let ms: Vec<f64> = stdout
+        .lines()
+        .filter(|l| l.starts_with("PROBLEM ") && common::key(l, "solved") == "1")
+        .map(|l| common::key(l, "ms").parse().expect("ms is a number"))
+        .collect();
+    assert!(!ms.is_empty(), "{stdout}");
+    let code = r#"
+import sys
+sys.path.insert(0, sys.argv[1])
+import interleaved_vs_vamp as m
+ember = m.per_problem(sys.stdin.read().splitlines(), "ms", 1.0)
+vamp = [m.per_problem(["PROBLEM set=s index=3 solved=1 us=100", "PROBLEM set=s index=8 solved=1 us=500",
+                       "PROBLEM set=s index=5 solved=1 us=1"], "us", 1e-3),
+        m.per_problem(["PROBLEM set=s index=3 solved=1 us=300", "PROBLEM set=s index=8 solved=1 us=200",
+                       "PROBLEM set=s index=5 solved=0 outcome=timeout"], "us", 1e-3)]
+slower = {k: 2 * v for k, v in ember.items()}
+print(m.summary("s", [1.0, 3.0, 2.0], vamp, [slower, ember]))
+"#;
+    let mut child = std::process::Command::new("python3")
+        .args(["-c", code, env!("CARGO_MANIFEST_DIR")])
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("python3 runs");
+    use std::io::Write;
+    child
+        .stdin
+        .take()
+        .expect("stdin")
+        .write_all(stdout.as_bytes())
+        .expect("write");
+    let out = child.wait_with_output().expect("python3 ends");
+    let line = String::from_utf8_lossy(&out.stdout).trim().to_string();
+    assert!(
+        out.status.success(),
+        "{line}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let num = |k: &str| -> f64 { common::key(&line, k).parse().expect("a number") };
+    assert_eq!(common::key(&line, "rounds"), "3", "{line}");
+    assert_eq!(num("ratio_median"), 2.0, "{line}");
+    assert_eq!((num("ratio_min"), num("ratio_max")), (1.0, 3.0), "{line}");
+    // VAMP's best: 0.1 ms (problem 3) and 0.2 ms (problem 8); problem 5 was not solved in
+    // every round.
+    assert_eq!(num("vamp_best_median_ms"), 0.15, "{line}");
+    let mut sorted = ms.clone();
+    sorted.sort_by(f64::total_cmp);
+    let n = sorted.len();
+    let median = (sorted[(n - 1) / 2] + sorted[n / 2]) / 2.0;
+    assert!((num("ours_best_median_ms") - median).abs() < 1e-4, "{line}");
+    assert!((num("best_ratio") - median / 0.15).abs() < 2e-3, "{line}");
+}
