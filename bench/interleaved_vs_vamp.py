@@ -88,6 +88,10 @@ def main():
         wanted = opt("--sets", "").split(",")
         folders = [f for f in folders if re.sub(r"_(fetch|panda)$", "", f) in wanted]
     bench = os.path.join(HERE, "..", "target", "release", "ember-bench")
+    for path, how in [(vamp_python, "run ../shared/peers/vamp/side_by_side.sh once to make it"),
+                      (bench, "cargo build --release -p ember-bench")]:
+        if not os.path.exists(path):
+            raise SystemExit(f"{path} is missing: {how}")
     ember_robot = [] if "--robot" in extra else ["--robot", robot]
     for folder in folders:
         name = re.sub(r"_(fetch|panda)$", "", folder)
@@ -118,6 +122,7 @@ def main():
                 flush=True,
             )
         print(summary(folder, ratios, vamp_passes, ember_passes), flush=True)
+
 
 if __name__ == "__main__":
     main()
