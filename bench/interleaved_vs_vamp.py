@@ -3,7 +3,7 @@ machine's changes of speed move less.
 
 Usage (from the project root, after `cargo build --release -p ember-bench`):
   python3 bench/interleaved_vs_vamp.py [--robot fetch|panda] [--rounds N] [--sets A,B]
-      [--vamp-python PY] [-- EMBER_BENCH_PLAN_ARGS...]
+      [--vamp-python PY] [--pointcloud] [-- EMBER_BENCH_PLAN_ARGS...]
 `side_by_side.sh` runs VAMP on every set, then Ember on every set, minutes apart; on a machine
 whose speed moves from minute to minute (this project's VMs) one planner can be timed in a
 slow phase and the other in a fast one. Here each set is planned by VAMP and by Ember back to
@@ -13,7 +13,10 @@ Halton sequence reset per problem, as `side_by_side.sh`'s peer script), with the
 the peer's virtualenv (`--vamp-python`, default /tmp/vamp-peer-venv/bin/python, which
 `side_by_side.sh` makes). Medians as `side_by_side.sh` takes them: VAMP's over the problems it
 solves, Ember's `median_ms`. Arguments after `--` go to `ember-bench plan` (as for
-`side_by_side.sh`: `--robot FILE.urdf --srdf ... --package-path ...`, `--seed S`).
+`side_by_side.sh`: `--robot FILE.urdf --srdf ... --package-path ...`, `--seed S`). With
+`--pointcloud`, VAMP plans against its CAPT clouds (`vamp_problems_peer.py --pointcloud`) and
+Ember, given `-- --clouds DIR` (the clouds `side_by_side.sh --pointcloud` wrote, by default
+/tmp/ember-vs-vamp/clouds), against the same clouds.
 Prints, per set and round:
   RESULT interleaved set=<folder> round=<r> vamp_solved= ours_solved= vamp_median_ms=
       ours_median_ms= ratio=
@@ -99,6 +102,8 @@ def main():
         files = os.listdir(os.path.join(root, folder))
         indices = ",".join(str(int(m[1])) for f in files if (m := re.match(r"request(\d+)\.yaml$", f)))
         vamp_cmd = [vamp_python, os.path.join(HERE, "vamp_problems_peer.py"), robot, pkl, name, indices]
+        if "--pointcloud" in args:
+            vamp_cmd.append("--pointcloud")
         ember_cmd = [bench, "plan", "--problems", os.path.join(root, folder), "--per-problem"]
         ember_cmd += ember_robot + extra
         ratios, vamp_passes, ember_passes = [], [], []
