@@ -32,16 +32,19 @@
 
 mod hiding;
 pub use hiding::prepare_validation;
+mod kinematics;
 pub mod lanes;
+mod objects;
 
 use crate::collision::checker::{bisection_order, steps_over};
-use crate::collision::Shape;
 use crate::robot::fk::JointFrames;
-use crate::robot::{Motion, Robot};
+use crate::robot::Robot;
 use crate::world::map::{Clearance, OccupancyMap};
 use crate::world::Environment;
 use hiding::Hiding;
+use kinematics::Joint8;
 use lanes::{boxes_overlapping, edge_fractions, edge_lanes, has_avx2, Pose8, ALL_LANES, F8, LANES};
+use objects::{penetrated, penetrates, penetrating_lanes, Object8, ObjectKind};
 use std::sync::Arc;
 
 /// Environment contacts remembered and tried first in the next batch (see
@@ -64,74 +67,6 @@ const STATIC: u32 = u32::MAX;
 
 /// Added to every radius (metres): the batch checker errs towards contact.
 pub const MARGIN: f32 = 1e-4;
-
-#[derive(Clone, Copy)]
-enum Kind {
-    Fixed,
-    /// About a coordinate axis, with its sign: the common case, a quarter of the work. Holds
-    /// the two other axes (the columns that turn).
-    RevoluteAxis([usize; 2], f32),
-    Revolute([f32; 3]),
-    Prismatic([f32; 3]),
-}
-
-/// How a link's pose follows from its parent's: the joint origin (row-major rotation,
-/// translation) in the parent's frame, the parent's frame, the motion and its variable.
-#[derive(Clone, Copy)]
-struct Joint8 {
-    origin: Origin,
-    parent: Option<usize>,
-    kind: Kind,
-    variable: usize,
-    /// The same, when it is the common joint (see [`AxisTurn`]).
-    turn: Option<AxisTurn>,
-    /// The same, when it is a slide along a coordinate axis (see [`AxisSlide`]).
-    slide: Option<AxisSlide>,
-}
-
-/// The common joint, recognised once: a turn about a coordinate axis, behind an origin whose
-/// rotation is none or a signed permutation of the axes (quarter turns), below a parent. Its
-/// pose is the parent's translated along at most one of the parent's axes (or by the origin's
-/// general shift), its rotation the parent's columns, permuted, two of them turned: no
-/// decisions left per batch but which shift and which columns.
-#[derive(Clone, Copy)]
-struct AxisTurn {
-    parent: usize,
-    shift: Shift,
-    /// Per column of the origin's rotation: the parent's column it takes, and its sign
-    /// (`None`: the origin does not rotate).
-    columns: Option<[(usize, f32); 3]>,
-    /// The columns that turn.
-    axes: [usize; 2],
-    sign: f32,
-    variable: usize,
-}
-
-/// A slide along a coordinate axis behind an origin that only shifts (a torso lift): the
-/// parent's rotation, copied (or written once, when no turn lies above it), and the parent's
-/// translation shifted along one of its axes by the variable.
-#[derive(Clone, Copy)]
-struct AxisSlide {
-    parent: usize,
-    shift: Shift,
-    /// The parent's axis it slides along (below 3), and its sign.
-    axis: usize,
-    sign: f32,
-    variable: usize,
-    /// True when no turn lies above it: its rotation never changes.
-    fixed_rotation: bool,
-}
-
-/// An origin's translation, sorted by the work it takes.
-#[derive(Clone, Copy)]
-enum Shift {
-    None,
-    /// Along the parent's axis `k` by `v` (the other components zero).
-    Along(usize, f32),
-    /// Along two of the parent's axes (`k` first, the lower), the third component zero.
-    AlongTwo([(usize, f32); 2]),
-    General,
-}
 
 /// A self-collision pair: links `a` and `b`, their bound radii, and the square of their sum
 /// (the bounds overlap where their centres are nearer than that; `f32`, as [`overlap`]).
@@ -158,27 +93,6 @@ enum Touched {
     Object(usize),
     /// The occupancy map.
     Map,
-}
-
-#[derive(Clone, Copy)]
-enum ObjectKind {
-    Sphere { r: f32 },
-    Box { h: [f32; 3] },
-    Cylinder { r: f32, hl: f32 },
-    Capsule { r: f32, hl: f32 },
-}
-
-#[derive(Clone, Copy)]
-struct Object8 {
-    rot_t: [f32; 9],
-    /// True when the rotation keeps the z axis on the world's z axis (a turn about the
-    /// vertical, as of objects standing on a floor or a table, or such a turn upside down):
-    /// five products place a point in its frame, not nine.
-    upright: bool,
-    t: [f32; 3],
-    lo: [f32; 3],
-    hi: [f32; 3],
-    kind: ObjectKind,
 }
 
 /// Eight-lane collision checks for one robot in one environment (see the module docs).
@@ -277,83 +191,7 @@ impl BatchChecker {
         // root): their spheres are placed in that frame once, so FK runs over joints only.
         let joints = JointFrames::new(robot);
         let frame = joints.frame.clone();
-        let mut joints8 = Vec::new();
-        for (i, link) in links.iter().enumerate() {
-            let o = joints.origin[i];
-            let m = o.rotation.matrix();
-            let r = std::array::from_fn(|k| f(m[(k / 3, k % 3)]));
-            let t = o.translation.vector;
-            let origin = Origin::new(r, [f(t.x), f(t.y), f(t.z)]);
-            let axis = |a: &nalgebra::Unit<nalgebra::Vector3<f64>>| [f(a.x), f(a.y), f(a.z)];
-            let (k, v) = match &link.motion {
-                Motion::Fixed => (Kind::Fixed, 0),
-                Motion::Revolute { axis: a, variable } => {
-                    let a = axis(a);
-                    match coordinate_axis(a) {
-                        Some(k) => (
-                            Kind::RevoluteAxis([(k + 1) % 3, (k + 2) % 3], a[k].signum()),
-                            *variable,
-                        ),
-                        None => (Kind::Revolute(a), *variable),
-                    }
-                }
-                Motion::Prismatic { axis: a, variable } => (Kind::Prismatic(axis(a)), *variable),
-            };
-            let parent = link.parent.map(|p| joints.frame[p]);
-            let columns = match origin.turn {
-                Turn::Identity => Some(None),
-                Turn::Axes(columns) => Some(Some(columns)),
-                Turn::General => None,
-            };
-            let nonzero: Vec<usize> = (0..3).filter(|&k| origin.t[k] != 0.0).collect();
-            let shift = match nonzero[..] {
-                [] => Shift::None,
-                [k] => Shift::Along(k, origin.t[k]),
-                [k, l] => Shift::AlongTwo([(k, origin.t[k]), (l, origin.t[l])]),
-                _ => Shift::General,
-            };
-            let turn = match (k, parent, columns) {
-                (Kind::RevoluteAxis(axes, sign), Some(parent), Some(columns)) => Some(AxisTurn {
-                    parent,
-                    shift,
-                    columns,
-                    axes,
-                    sign,
-                    variable: v,
-                }),
-                _ => None,
-            };
-            let slide = match (k, parent, origin.turn) {
-                (Kind::Prismatic(a), Some(parent), Turn::Identity) => {
-                    coordinate_axis(a).map(|axis| {
-                        // Parents come first: a parent's rotation is fixed when it does not move
-                        // or is itself a slide with a fixed rotation.
-                        let fixed_rotation = !robot.link_moves(parent)
-                            || joints8
-                                .get(parent)
-                                .and_then(|j: &Joint8| j.slide)
-                                .is_some_and(|s| s.fixed_rotation);
-                        AxisSlide {
-                            parent,
-                            shift,
-                            axis,
-                            sign: a[axis],
-                            variable: v,
-                            fixed_rotation,
-                        }
-                    })
-                }
-                _ => None,
-            };
-            joints8.push(Joint8 {
-                origin,
-                parent,
-                kind: k,
-                variable: v,
-                turn,
-                slide,
-            });
-        }
+        let joints8 = kinematics::joints(robot, &joints);
         // Sphere-model points in the frame their link rides in.
         let place = |l: usize, c: [f64; 3]| -> [f32; 3] { joints.place(l, c).map(f) };
         let moves: Vec<bool> = (0..links.len()).map(|l| robot.link_moves(l)).collect();
@@ -529,35 +367,8 @@ impl BatchChecker {
             m.clearance();
             m.has_occupied()
         });
-        let f = |v: f64| v as f32;
         self.objects.clear();
-        self.objects.extend(env.placed().map(|o| Object8 {
-            rot_t: std::array::from_fn(|k| f(o.rot_t[k / 3][k % 3])),
-            upright: [o.rot_t[0][2], o.rot_t[1][2], o.rot_t[2][0], o.rot_t[2][1]] == [0.0; 4],
-            t: o.t.map(f),
-            lo: o.lo.map(f),
-            hi: o.hi.map(f),
-            kind: match *o.shape {
-                Shape::Sphere { radius } => ObjectKind::Sphere { r: f(radius) },
-                Shape::Box { half_extents } => ObjectKind::Box {
-                    h: half_extents.map(f),
-                },
-                Shape::Cylinder {
-                    radius,
-                    half_length,
-                } => ObjectKind::Cylinder {
-                    r: f(radius),
-                    hl: f(half_length),
-                },
-                Shape::Capsule {
-                    radius,
-                    half_length,
-                } => ObjectKind::Capsule {
-                    r: f(radius),
-                    hl: f(half_length),
-                },
-            },
-        }));
+        self.objects.extend(env.placed().map(Object8::of));
         self.object_boxes.clear();
         self.object_boxes
             .extend(self.objects.chunks(LANES).map(|chunk| {
@@ -860,18 +671,6 @@ impl BatchChecker {
         self.env_contact() || self.self_contact() || (self.validating && self.may_hide())
     }
 
-    /// Writes the pose of every moving link for the eight lanes' configurations.
-    #[inline(always)]
-    fn pose_links(&mut self) {
-        // Moved out while the poses are written: the loop then keeps its place in registers
-        // instead of reloading the list and checking the index per link.
-        let posed = std::mem::take(&mut self.posed);
-        for &l in &posed {
-            self.fk_link(l);
-        }
-        self.posed = posed;
-    }
-
     #[inline(always)]
     fn remember(&mut self, contact: (usize, usize, Touched)) {
         self.bring_forward(RECENT - 1, Some(contact));
@@ -891,82 +690,6 @@ impl BatchChecker {
     fn place_bound(&mut self, l: usize) {
         let (c, _) = self.bound[l].unwrap_or_default();
         self.bounds[l] = self.poses[self.frame[l]].apply_const_on(c, self.avx2);
-    }
-
-    #[inline(always)]
-    fn fk_link(&mut self, l: usize) {
-        // The parent's pose times the constant joint origin, then the joint's own motion,
-        // written in place: a pose is 384 bytes, and copies cost as much as the arithmetic.
-        let joint = &self.joints[l];
-        let origin = &joint.origin;
-        let (done, rest) = self.poses.split_at_mut(l);
-        let at = &mut rest[0];
-        if let Some(slide) = &joint.slide {
-            let parent = &done[slide.parent];
-            if !slide.fixed_rotation {
-                // Row by row: a copy of the 288-byte rotation was a call to `memcpy`.
-                for (to, from) in at.r.iter_mut().zip(&parent.r) {
-                    *to = *from;
-                }
-            }
-            shift(origin, slide.shift, parent, at);
-            let v = self.lanes[slide.variable] * F8::splat(slide.sign);
-            let k = slide.axis.min(2);
-            for row in 0..3 {
-                at.t[row] = parent.r[row * 3 + k].mul_add(v, at.t[row]);
-            }
-            return;
-        }
-        if let Some(turn) = &joint.turn {
-            let parent = &done[turn.parent];
-            shift(origin, turn.shift, parent, at);
-            let (s, c) = self.lanes[turn.variable].sin_cos();
-            let s = s * F8::splat(turn.sign);
-            match turn.columns {
-                None => turn_columns(Some(&parent.r), &mut at.r, turn.axes, (s, c)),
-                // The parent's columns permuted by the quarter turns and turned, in one pass.
-                Some(columns) => turn_permuted(&parent.r, &mut at.r, columns, turn.axes, (s, c)),
-            }
-            return;
-        }
-        let parent = match joint.parent {
-            None => {
-                *at = Pose8::splat(origin.r, origin.t);
-                None
-            }
-            Some(p) => {
-                origin.translate(&done[p], at);
-                Some(&done[p].r)
-            }
-        };
-        if let Kind::RevoluteAxis(axes, sign) = joint.kind {
-            let (s, c) = self.lanes[joint.variable].sin_cos();
-            let s = s * F8::splat(sign);
-            match (parent, origin.turn) {
-                // The common case: the parent's rotation turned straight into place.
-                (Some(r), Turn::Identity) => turn_columns(Some(r), &mut at.r, axes, (s, c)),
-                // Turned in place: a copy of the 288-byte rotation was a call to `memcpy`.
-                (Some(r), _) => {
-                    origin.rotate(r, &mut at.r);
-                    turn_columns(None, &mut at.r, axes, (s, c));
-                }
-                (None, _) => turn_columns(None, &mut at.r, axes, (s, c)),
-            }
-            return;
-        }
-        if let Some(r) = parent {
-            origin.rotate(r, &mut at.r);
-        }
-        match joint.kind {
-            Kind::Fixed | Kind::RevoluteAxis(..) => {}
-            Kind::Revolute(axis) => {
-                at.r = rotation(axis, self.lanes[joint.variable]).r_after(&at.r);
-            }
-            Kind::Prismatic(axis) => {
-                let v = self.lanes[joint.variable];
-                at.t = at.apply(axis.map(|a| F8::splat(a) * v));
-            }
-        }
     }
 
     #[inline(always)]
@@ -1257,208 +980,6 @@ impl BatchChecker {
     }
 }
 
-/// A joint origin (row-major rotation `r`, translation `t`), with its rotation sorted by the
-/// work it takes: none, a signed permutation of the axes (quarter turns, common in robot
-/// descriptions), or a general product.
-#[derive(Clone, Copy)]
-struct Origin {
-    r: [f32; 9],
-    t: [f32; 3],
-    turn: Turn,
-}
-
-#[derive(Clone, Copy)]
-enum Turn {
-    Identity,
-    /// Column `j` of the rotation is `sign · e[axis]`: `(axis, sign)` per column.
-    Axes([(usize, f32); 3]),
-    General,
-}
-
-impl Origin {
-    fn new(r: [f32; 9], t: [f32; 3]) -> Self {
-        let column = |j: usize| -> Option<(usize, f32)> {
-            let c = [r[j], r[3 + j], r[6 + j]];
-            let i = (0..3).find(|&i| (c[i].abs() - 1.0).abs() < 1e-6)?;
-            let rest = (0..3).filter(|&k| k != i).all(|k| c[k].abs() < 1e-6);
-            rest.then_some((i, c[i].signum()))
-        };
-        let turn = match [column(0), column(1), column(2)] {
-            [Some(a), Some(b), Some(c)] if [a, b, c] == [(0, 1.0), (1, 1.0), (2, 1.0)] => {
-                Turn::Identity
-            }
-            [Some(a), Some(b), Some(c)] => Turn::Axes([a, b, c]),
-            _ => Turn::General,
-        };
-        Origin { r, t, turn }
-    }
-
-    /// `out.t` = the translation of `parent · self` (zero components skipped).
-    #[inline(always)]
-    fn translate(&self, parent: &Pose8, out: &mut Pose8) {
-        let a = &parent.r;
-        out.t = parent.t;
-        for (k, &v) in self.t.iter().enumerate() {
-            if v != 0.0 {
-                let v = F8::splat(v);
-                for row in 0..3 {
-                    out.t[row] = a[row * 3 + k].mul_add(v, out.t[row]);
-                }
-            }
-        }
-    }
-
-    /// `out` = the rotation `a · self.r`, permuting columns when it can.
-    #[inline(always)]
-    fn rotate(&self, a: &[F8; 9], out: &mut [F8; 9]) {
-        match self.turn {
-            // Row by row: a copy of the whole 288 bytes is a call to `memcpy`.
-            Turn::Identity => {
-                for row in 0..3 {
-                    let r: [F8; 3] = [a[row * 3], a[row * 3 + 1], a[row * 3 + 2]];
-                    out[row * 3..row * 3 + 3].copy_from_slice(&r);
-                }
-            }
-            Turn::Axes(axes) => permute_columns(a, out, axes),
-            Turn::General => *out = Pose8::splat(self.r, [0.0; 3]).r_after(a),
-        }
-    }
-}
-
-/// `at.t` = the translation of `parent · origin`, its kind `shift` recognised beforehand: the
-/// same arithmetic as [`Origin::translate`] (zero components skipped).
-#[inline(always)]
-fn shift(origin: &Origin, shift: Shift, parent: &Pose8, at: &mut Pose8) {
-    match shift {
-        Shift::None => at.t = parent.t,
-        // Loops, not `array::from_fn`: its closures were left uninlined (so without AVX2)
-        // once the batch checker grew.
-        Shift::Along(k, v) => {
-            let (k, v) = (k.min(2), F8::splat(v));
-            for row in 0..3 {
-                at.t[row] = parent.r[row * 3 + k].mul_add(v, parent.t[row]);
-            }
-        }
-        Shift::AlongTwo([(k, v), (l, w)]) => {
-            let (k, l, v, w) = (k.min(2), l.min(2), F8::splat(v), F8::splat(w));
-            for row in 0..3 {
-                let t = parent.r[row * 3 + k].mul_add(v, parent.t[row]);
-                at.t[row] = parent.r[row * 3 + l].mul_add(w, t);
-            }
-        }
-        Shift::General => origin.translate(parent, at),
-    }
-}
-
-/// `out` = the rotation `a` times a signed permutation: column `j` of `out` is column
-/// `columns[j].0` of `a`, negated when `columns[j].1` is negative.
-#[inline(always)]
-fn permute_columns(a: &[F8; 9], out: &mut [F8; 9], columns: [(usize, f32); 3]) {
-    for row in 0..3 {
-        for (j, &(i, sign)) in columns.iter().enumerate() {
-            let v = a[row * 3 + i];
-            out[row * 3 + j] = if sign > 0.0 { v } else { F8::splat(0.0) - v };
-        }
-    }
-}
-
-/// `to = from` (or `to` itself, `from` being `None`) turned by the lane angles whose sine
-/// and cosine are `(s, c)` about the coordinate axis other than `[i, j]`: those two columns
-/// turn, the third is copied.
-#[inline(always)]
-fn turn_columns(from: Option<&[F8; 9]>, to: &mut [F8; 9], axes: [usize; 2], sc: (F8, F8)) {
-    // Column numbers known at compile time: no index arithmetic or bounds checks.
-    match axes {
-        [1, 2] => turn_columns_of::<1, 2, 0>(from, to, sc),
-        [2, 0] => turn_columns_of::<2, 0, 1>(from, to, sc),
-        _ => turn_columns_of::<0, 1, 2>(from, to, sc),
-    }
-}
-
-#[inline(always)]
-fn turn_columns_of<const I: usize, const J: usize, const K: usize>(
-    from: Option<&[F8; 9]>,
-    to: &mut [F8; 9],
-    (s, c): (F8, F8),
-) {
-    for row in 0..3 {
-        // A row's two entries are read before either is written: in place is safe.
-        let (a, b) = match from {
-            Some(f) => (f[row * 3 + I], f[row * 3 + J]),
-            None => (to[row * 3 + I], to[row * 3 + J]),
-        };
-        to[row * 3 + I] = a.mul_add(c, b * s);
-        to[row * 3 + J] = b.mul_sub(c, a * s);
-        if let Some(f) = from {
-            to[row * 3 + K] = f[row * 3 + K];
-        }
-    }
-}
-
-/// `to` = `from` with its columns permuted by `columns` (as [`permute_columns`]), then turned
-/// as [`turn_columns`] turns them, in one pass: the permutation's signs go into the sine and
-/// cosine (products by ±1, exact), and each column is read from `from` where it lies, so no
-/// permuted copy is written and read back.
-#[inline(always)]
-fn turn_permuted(
-    from: &[F8; 9],
-    to: &mut [F8; 9],
-    columns: [(usize, f32); 3],
-    axes: [usize; 2],
-    sc: (F8, F8),
-) {
-    match axes {
-        [1, 2] => turn_permuted_of::<1, 2, 0>(from, to, columns, sc),
-        [2, 0] => turn_permuted_of::<2, 0, 1>(from, to, columns, sc),
-        _ => turn_permuted_of::<0, 1, 2>(from, to, columns, sc),
-    }
-}
-
-#[inline(always)]
-fn turn_permuted_of<const I: usize, const J: usize, const K: usize>(
-    from: &[F8; 9],
-    to: &mut [F8; 9],
-    columns: [(usize, f32); 3],
-    (s, c): (F8, F8),
-) {
-    let ((i, sign_i), (j, sign_j), (k, sign_k)) = (columns[I], columns[J], columns[K]);
-    // Column numbers (below 3), said so: the reads below need no bounds checks.
-    let (i, j, k) = (i.min(2), j.min(2), k.min(2));
-    let (sign_i, sign_j) = (F8::splat(sign_i), F8::splat(sign_j));
-    let (c_i, s_i, c_j, s_j) = (c * sign_i, s * sign_i, c * sign_j, s * sign_j);
-    let sign_k = F8::splat(sign_k);
-    for row in 0..3 {
-        let (a, b) = (from[row * 3 + i], from[row * 3 + j]);
-        to[row * 3 + I] = a.mul_add(c_i, b * s_j);
-        to[row * 3 + J] = b.mul_sub(c_j, a * s_i);
-        to[row * 3 + K] = from[row * 3 + k] * sign_k;
-    }
-}
-
-/// Rotation by the lane angles `q` about the unit `axis` (Rodrigues).
-#[inline(always)]
-fn rotation(axis: [f32; 3], q: F8) -> Pose8 {
-    let (s, c) = q.sin_cos();
-    let one_c = F8::splat(1.0) - c;
-    let [x, y, z] = axis.map(F8::splat);
-    let (xs, ys, zs) = (x * s, y * s, z * s);
-    let (xc, yc, zc) = (x * one_c, y * one_c, z * one_c);
-    Pose8 {
-        r: [
-            x * xc + c,
-            x * yc - zs,
-            x * zc + ys,
-            y * xc + zs,
-            y * yc + c,
-            y * zc - xs,
-            z * xc - ys,
-            z * yc + xs,
-            z * zc + c,
-        ],
-        t: [F8::splat(0.0); 3],
-    }
-}
-
 /// The first self-collision pair from `from` on whose link bounds overlap in some lane.
 #[inline(always)]
 fn next_overlapping(pairs: &[SelfPair], bounds: &[[F8; 3]], from: usize) -> Option<usize> {
@@ -1476,12 +997,6 @@ fn next_overlapping(pairs: &[SelfPair], bounds: &[[F8; 3]], from: usize) -> Opti
         }
     }
     None
-}
-
-/// The coordinate axis that joint axis `a` lies along exactly (its other components zero, as
-/// `f32` gives them), if any: such a turn or slide touches two columns or one (see [`Kind`]).
-fn coordinate_axis(a: [f32; 3]) -> Option<usize> {
-    (0..3).find(|&k| a[k].abs() == 1.0 && (0..3).all(|m| m == k || a[m] == 0.0))
 }
 
 /// True when balls `(a, ra)` and `(b, rb)` overlap in some lane.
@@ -1571,95 +1086,11 @@ fn lanes_touch_map(
     false
 }
 
-/// The objects of `mask` that the ball at `p` with radius `r` penetrates in some lane.
-#[inline(always)]
-fn penetrated(objects: &[Object8], mask: u64, p: [F8; 3], r: f32) -> u64 {
-    let mut out = 0u64;
-    let mut m = mask;
-    while m != 0 {
-        let j = m.trailing_zeros() as usize;
-        m &= m - 1;
-        if penetrates(&objects[j], p, r) {
-            out |= 1 << j;
-        }
-    }
-    out
-}
-
-/// The lanes (bits) where the ball at `p` with radius `r` penetrates object `o`
-/// ([`penetrates`] lane by lane).
-#[inline(always)]
-fn penetrating_lanes(o: &Object8, p: [F8; 3], r: f32) -> u32 {
-    let (gap2, reach2) = penetration(o, p, r);
-    gap2.lt_mask(reach2).bits()
-}
-
-/// True when the ball at `p` with radius `r` penetrates object `o` in some lane (the scalar checker's
-/// test: signed distance below `r`).
-#[inline(always)]
-fn penetrates(o: &Object8, p: [F8; 3], r: f32) -> bool {
-    let (gap2, reach2) = penetration(o, p, r);
-    gap2.any_lt(reach2)
-}
-
-/// What [`penetrates`] compares, per lane: a squared gap and the squared reach it must be
-/// below.
-#[inline(always)]
-fn penetration(o: &Object8, p: [F8; 3], r: f32) -> (F8, F8) {
-    let d = [
-        p[0] - F8::splat(o.t[0]),
-        p[1] - F8::splat(o.t[1]),
-        p[2] - F8::splat(o.t[2]),
-    ];
-    let (x, y, z) = if o.upright {
-        // The general products below without the zeros' terms: the same values.
-        // (No closure: it would be compiled without the caller's AVX2.)
-        let m = &o.rot_t;
-        let x = F8::splat(m[0]).mul_add(d[0], F8::splat(m[1]) * d[1]);
-        let y = F8::splat(m[3]).mul_add(d[0], F8::splat(m[4]) * d[1]);
-        (x, y, F8::splat(m[8]) * d[2])
-    } else {
-        let m = o.rot_t.map(F8::splat);
-        let x = m[0].mul_add(d[0], m[1].mul_add(d[1], m[2] * d[2]));
-        let y = m[3].mul_add(d[0], m[4].mul_add(d[1], m[5] * d[2]));
-        let z = m[6].mul_add(d[0], m[7].mul_add(d[1], m[8] * d[2]));
-        (x, y, z)
-    };
-    let zero = F8::splat(0.0);
-    match o.kind {
-        ObjectKind::Sphere { r: big } => {
-            let reach = big + r;
-            (x.mul_add(x, y.mul_add(y, z * z)), F8::splat(reach * reach))
-        }
-        ObjectKind::Box { h } => {
-            let qx = (x.abs() - F8::splat(h[0])).max(zero);
-            let qy = (y.abs() - F8::splat(h[1])).max(zero);
-            let qz = (z.abs() - F8::splat(h[2])).max(zero);
-            (qx.mul_add(qx, qy.mul_add(qy, qz * qz)), F8::splat(r * r))
-        }
-        ObjectKind::Cylinder { r: big, hl } => {
-            let radial = (x.mul_add(x, y * y).sqrt() - F8::splat(big)).max(zero);
-            let axial = (z.abs() - F8::splat(hl)).max(zero);
-            (radial.mul_add(radial, axial * axial), F8::splat(r * r))
-        }
-        ObjectKind::Capsule { r: big, hl } => {
-            let zc = z - z.max(F8::splat(-hl)).min(F8::splat(hl));
-            let reach = big + r;
-            (
-                x.mul_add(x, y.mul_add(y, zc * zc)),
-                F8::splat(reach * reach),
-            )
-        }
-    }
-}
-
 #[cfg(all(test, target_arch = "x86_64"))]
 mod tests {
     use super::*;
     use crate::world::environment::random_boxes;
-    use crate::world::Object;
-    use crate::Pose;
-    use rand::{Rng, SeedableRng};
+    use rand::SeedableRng;
 
     /// Six random boxes in front of the robot, where arms reach.
     fn six_boxes(rng: &mut rand::rngs::StdRng) -> Environment {
@@ -1715,64 +1146,6 @@ mod tests {
                 hits > 0 && hits < runs,
                 "{name}: {hits} of {runs} in contact"
             );
-        }
-    }
-
-    /// An object turned about z alone is placed in its frame by the shorter products, with
-    /// the same values as the general ones, bit for bit, for every shape; a tilted one is not
-    /// taken as upright.
-    #[test]
-    fn upright_objects_test_as_the_general_rotation() {
-        let mut rng = rand::rngs::StdRng::seed_from_u64(11);
-        let shapes = [
-            Shape::cuboid([0.3, 0.2, 0.1]),
-            Shape::Sphere { radius: 0.1 },
-            Shape::Cylinder {
-                radius: 0.1,
-                half_length: 0.2,
-            },
-            Shape::Capsule {
-                radius: 0.05,
-                half_length: 0.15,
-            },
-        ];
-        let objects = shapes.iter().enumerate().map(|(i, shape)| Object {
-            name: format!("o{i}"),
-            shape: *shape,
-            pose: Pose::from_parts(
-                nalgebra::Translation3::new(0.6, -0.2 + 0.1 * i as f64, 0.8),
-                nalgebra::UnitQuaternion::from_euler_angles(0.0, 0.0, 0.4 + i as f64),
-            ),
-        });
-        let tilted = Object {
-            name: "tilted".into(),
-            shape: Shape::cuboid([0.3, 0.2, 0.1]),
-            pose: Pose::from_parts(
-                nalgebra::Translation3::new(0.6, 0.0, 0.8),
-                nalgebra::UnitQuaternion::from_euler_angles(0.3, 0.0, 0.4),
-            ),
-        };
-        let env = Environment::from_objects(objects.chain([tilted])).unwrap();
-        let robot = Robot::builtin("fetch").unwrap();
-        let sut = BatchChecker::new(&robot, &env);
-        let upright: Vec<bool> = sut.objects.iter().map(|o| o.upright).collect();
-        assert_eq!(upright, [true, true, true, true, false]);
-        let bits = |(a, b): (F8, F8)| (a.0.map(f32::to_bits), b.0.map(f32::to_bits));
-        for o in &sut.objects[..4] {
-            let general = Object8 {
-                upright: false,
-                ..*o
-            };
-            for _ in 0..200 {
-                let p: [F8; 3] = std::array::from_fn(|_| {
-                    F8(std::array::from_fn(|_| rng.random_range(0.0..1.5)))
-                });
-                let r = rng.random_range(0.01..0.3);
-                assert_eq!(
-                    bits(penetration(o, p, r)),
-                    bits(penetration(&general, p, r))
-                );
-            }
         }
     }
 
