@@ -19,6 +19,7 @@
 
 mod bt_file;
 mod clearance;
+mod distance;
 mod insert;
 
 pub use bt_file::BtError;
