@@ -1,7 +1,8 @@
 //! `ember replay FILE...`: feeds a recorded session into a running daemon through the SDK —
 //! objects, joint states, clouds (with their sensor poses) and plan requests, in recorded order,
-//! as fast as possible or at a multiple of real time. Before each plan request it waits until the
-//! daemon has taken everything sent before it, so the world matches the recording; with
+//! as fast as possible or at a multiple of real time. Before each plan request, and before it
+//! exits, it waits until the daemon has taken everything sent before it, so the world matches
+//! the recording and no input leaves with the replay's publishers; with
 //! `--check` each reply is compared with the recorded one (same seed, same world: same path,
 //! and the same timed trajectory when the request asked for one).
 
@@ -125,6 +126,9 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<ExitCode> {
             Ok(())
         })?;
     }
+    // The last inputs may still be on their way: a publisher that goes away with samples
+    // its subscriber has not taken yet can take them with it.
+    wait_taken(&client, base, sent, 0)?;
     println!(
         "messages replayed: {messages} in {:.1} s",
         started.elapsed().as_secs_f64()
