@@ -34,18 +34,18 @@ import statistics
 import subprocess
 import sys
 
+from per_problem_vs_vamp import problems
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 SHARED = os.path.join(HERE, "..", "..", "shared")
 
 
 def per_problem(lines, time_key, scale):
-    """{index: ms} of the solved problems in `PROBLEM` lines (`time_key` in ms × `scale`)."""
+    """{index: ms} of the solved problems in one set's `PROBLEM` lines (`time_key` in ms ×
+    `scale`), read by `per_problem_vs_vamp.problems`."""
     out = {}
-    for line in lines:
-        if line.startswith("PROBLEM"):
-            d = dict(re.findall(r"(\w+)=(\S+)", line))
-            if d["solved"] == "1":
-                out[int(d["index"])] = float(d[time_key]) * scale
+    for runs in problems(lines, time_key, scale * 1e6).values():
+        out.update({k: ns / 1e6 for k, (_, ns) in runs.items()})
     return out
 
 

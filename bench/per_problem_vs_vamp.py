@@ -26,10 +26,11 @@ import sys
 from collections import defaultdict
 
 
-def problems(path, time_key, scale):
-    """{set: {index: (iterations, ns)}} of the solved problems in a file."""
+def problems(lines, time_key, scale):
+    """{set: {index: (iterations, ns)}} of the solved problems in `PROBLEM` lines (a file's, or
+    a run's output), each time in `time_key` units × `scale`."""
     out = defaultdict(dict)
-    for line in open(path):
+    for line in lines:
         if not line.startswith("PROBLEM"):
             continue
         d = dict(re.findall(r"(\w+)=(\S+)", line))
@@ -62,8 +63,8 @@ def solved_vs_truth(name, ember, vamp, free):
 
 
 def main():
-    ember = problems(sys.argv[1], "ms", 1e6)
-    vamp = problems(sys.argv[2], "us", 1e3)
+    ember = problems(open(sys.argv[1]), "ms", 1e6)
+    vamp = problems(open(sys.argv[2]), "us", 1e3)
     free = truth(sys.argv[sys.argv.index("--truth") + 1]) if "--truth" in sys.argv else None
     for name in sorted(set(ember) & set(vamp)):
         if free is not None and name in free:

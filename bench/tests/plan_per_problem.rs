@@ -138,9 +138,11 @@ import sys
 sys.path.insert(0, sys.argv[1])
 import interleaved_vs_vamp as m
 ember = m.per_problem(sys.stdin.read().splitlines(), "ms", 1.0)
-vamp = [m.per_problem(["PROBLEM set=s index=3 solved=1 us=100", "PROBLEM set=s index=8 solved=1 us=500",
-                       "PROBLEM set=s index=5 solved=1 us=1"], "us", 1e-3),
-        m.per_problem(["PROBLEM set=s index=3 solved=1 us=300", "PROBLEM set=s index=8 solved=1 us=200",
+vamp = [m.per_problem(["PROBLEM set=s index=3 solved=1 iterations=9 us=100",
+                       "PROBLEM set=s index=8 solved=1 iterations=9 us=500",
+                       "PROBLEM set=s index=5 solved=1 iterations=9 us=1"], "us", 1e-3),
+        m.per_problem(["PROBLEM set=s index=3 solved=1 iterations=9 us=300",
+                       "PROBLEM set=s index=8 solved=1 iterations=9 us=200",
                        "PROBLEM set=s index=5 solved=0 outcome=timeout"], "us", 1e-3)]
 slower = {k: 2 * v for k, v in ember.items()}
 print(m.summary("s", [1.0, 3.0, 2.0], vamp, [slower, ember]))
