@@ -109,6 +109,26 @@ impl NearestIndex {
         }
     }
 
+    /// Empties the index, keeping its buffers (a search reusing it allocates nothing until it
+    /// outgrows them).
+    pub fn clear(&mut self) {
+        self.children.clear();
+        self.split.clear();
+        self.lo.clear();
+        self.hi.clear();
+        self.points.clear();
+        self.ids.clear();
+        self.lanes.clear();
+        self.rows.clear();
+        self.len.clear();
+        self.stack.clear();
+    }
+
+    /// Per joint, whether it wraps (as given to [`NearestIndex::new`]).
+    pub fn continuous(&self) -> &[bool] {
+        &self.continuous
+    }
+
     /// Points indexed (exact duplicates of an indexed point may be left out).
     pub fn len(&self) -> usize {
         self.len.iter().map(|&n| n as usize).sum()

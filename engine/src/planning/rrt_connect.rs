@@ -54,6 +54,16 @@ impl Tree {
         }
     }
 
+    /// Empties the tree, keeping its buffers.
+    fn clear(&mut self) {
+        self.q.clear();
+        self.parent.clear();
+        self.index.clear();
+        self.domain.clear();
+        self.root_failed.clear();
+        self.retreated = false;
+    }
+
     fn len(&self) -> usize {
         self.parent.len()
     }
@@ -551,6 +561,18 @@ fn add_if_free(
     }
 }
 
+/// Trees kept over at most this many nodes are dropped rather than kept as spares (a tree of
+/// 8 joints and 16k nodes holds ~2 MB).
+const SPARE_NODES: usize = 1 << 14;
+
+thread_local! {
+    /// The last search's two trees on this thread, for the next search to empty and reuse:
+    /// making and dropping them (the index's buffers, the first leaf's lanes) and growing them
+    /// was ~5% of a short Panda search's instructions.
+    static SPARE_TREES: std::cell::Cell<Option<Box<[Tree; 2]>>> =
+        const { std::cell::Cell::new(None) };
+}
+
 /// Searches for a path from `start` to any of `goals` (all valid and collision free).
 // Never inlined: called once per plan, and profiles (the README's callgrind commands) select
 // the search by its name.
@@ -564,13 +586,50 @@ pub(crate) fn search(
     rng: &mut PlannerRng,
     stats: &mut PlanStats,
 ) -> Result<Vec<Vec<f64>>, PlanError> {
+    let t0 = Instant::now();
+    let continuous: Vec<bool> = checker
+        .robot()
+        .variables()
+        .iter()
+        .map(|v| v.continuous)
+        .collect();
+    let dof = continuous.len();
+    let mut trees = match SPARE_TREES.take() {
+        Some(mut spare) if spare[0].index.continuous() == continuous => {
+            spare.iter_mut().for_each(Tree::clear);
+            spare
+        }
+        _ => Box::new([Tree::new(dof, &continuous), Tree::new(dof, &continuous)]),
+    };
+    let [start_tree, goal_tree] = &mut *trees;
+    let result = search_with(
+        (start_tree, goal_tree),
+        t0,
+        checker,
+        (start, goals),
+        params,
+        (sampler, rng),
+        stats,
+    );
+    if trees.iter().all(|t| t.parent.capacity() <= SPARE_NODES) {
+        SPARE_TREES.set(Some(trees));
+    }
+    result
+}
+
+/// [`search`] in the trees given (empty).
+fn search_with(
+    (start_tree, goal_tree): (&mut Tree, &mut Tree),
+    t0: Instant,
+    checker: &mut Validity<'_>,
+    (start, goals): (&[f64], &[Vec<f64>]),
+    params: &PlannerParams,
+    (sampler, rng): (&mut dyn Sampler, &mut PlannerRng),
+    stats: &mut PlanStats,
+) -> Result<Vec<Vec<f64>>, PlanError> {
     let robot = checker.robot();
     let dof = robot.dof();
-    let t0 = Instant::now();
-    let continuous: Vec<bool> = robot.variables().iter().map(|v| v.continuous).collect();
-    let mut start_tree = Tree::new(dof, &continuous);
     start_tree.add_root(start);
-    let mut goal_tree = Tree::new(dof, &continuous);
     for g in goals {
         goal_tree.add_root(g);
     }
@@ -630,9 +689,9 @@ pub(crate) fn search(
         // Grow the smaller tree (balanced bidirectional search).
         let from_start = start_tree.len() <= goal_tree.len();
         let (a, b) = if from_start {
-            (&mut start_tree, &mut goal_tree)
+            (&mut *start_tree, &mut *goal_tree)
         } else {
-            (&mut goal_tree, &mut start_tree)
+            (&mut *goal_tree, &mut *start_tree)
         };
         if !a.retreated
             && iterations >= RETREAT_AFTER.0
