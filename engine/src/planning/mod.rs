@@ -315,9 +315,7 @@ pub fn plan(
     if let Some(c) = checker.state_contact(&request.start) {
         return Err(PlanError::StartInCollision(c));
     }
-    if !checker.spheres().is_valid(&request.start) {
-        checker.add_anchor(&request.start);
-    }
+    checker.anchor_if_touched(&request.start);
     stats.validate_s = t.elapsed().as_secs_f64();
     let goals = match &request.goal {
         Goal::Joints(goals) => {
@@ -328,9 +326,7 @@ pub fn plan(
                 robot.validate(g).map_err(PlanError::InvalidGoal)?;
                 match checker.state_contact(g) {
                     None => {
-                        if !checker.spheres().is_valid(g) {
-                            checker.add_anchor(g);
-                        }
+                        checker.anchor_if_touched(g);
                         free.push(g.clone())
                     }
                     Some(c) => {
@@ -361,9 +357,7 @@ pub fn plan(
                 &mut rng,
             )?;
             for q in &sols {
-                if !checker.spheres().is_valid(q) {
-                    checker.add_anchor(q);
-                }
+                checker.anchor_if_touched(q);
             }
             stats.ik_s = t.elapsed().as_secs_f64();
             if sols.is_empty() {

@@ -63,11 +63,6 @@ impl<'a> Validity<'a> {
         self.robot
     }
 
-    /// The sphere checker.
-    pub fn spheres(&mut self) -> &mut SphereChecker<'a> {
-        &mut self.spheres
-    }
-
     /// The exact checker.
     pub fn exact(&mut self) -> &mut ExactChecker<'a> {
         &mut self.exact
@@ -95,15 +90,31 @@ impl<'a> Validity<'a> {
         (s, self.fallbacks)
     }
 
+    /// True when the sphere model, as the search checks states (the batch checker's lanes
+    /// when there is one), finds `q` free.
+    #[inline]
+    fn spheres_free(&mut self, q: &[f64]) -> bool {
+        match self.batch.as_mut() {
+            Some(batch) => !batch.state_may_collide(q),
+            None => self.spheres.is_valid(q),
+        }
+    }
+
+    /// Registers `q`, a start or goal free in the exact geometry, as an anchor when the sphere
+    /// model touches it (see the module docs); true when it did.
+    pub fn anchor_if_touched(&mut self, q: &[f64]) -> bool {
+        let touched = !self.spheres_free(q);
+        if touched {
+            self.add_anchor(q);
+        }
+        touched
+    }
+
     /// True when `q` is free: the spheres say so, or `q` is near an anchor and the exact
     /// geometry says so.
     #[inline]
     pub fn is_valid(&mut self, q: &[f64]) -> bool {
-        let spheres_free = match self.batch.as_mut() {
-            Some(batch) => !batch.state_may_collide(q),
-            None => self.spheres.is_valid(q),
-        };
-        if spheres_free {
+        if self.spheres_free(q) {
             return true;
         }
         // Moved out only for a flagged state (the checker is large).
