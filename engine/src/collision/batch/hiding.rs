@@ -35,6 +35,9 @@ pub(super) struct Hiding {
     pub(super) covers: bool,
     /// Per link: its pockets (the sphere model's).
     pockets: Vec<Arc<LinkPockets>>,
+    /// Per link and radius of [`LADDER`]: its pockets' answer, once asked (they answer under
+    /// a lock; a spare checker keeps these from plan to plan).
+    rooms: Vec<[Option<bool>; LADDER.len()]>,
     /// Self pairs (their index) with a part (its point) of link `x` that could hide in link
     /// `y`: `(pair, x, y, point)`; worked out on the first validation.
     parts: Option<Vec<(usize, usize, usize, usize)>>,
@@ -78,6 +81,7 @@ impl Hiding {
             points,
             covers,
             pockets: robot.spheres().pockets.clone(),
+            rooms: vec![[None; LADDER.len()]; links.len()],
             parts: None,
             in_env: None,
         }
@@ -89,9 +93,11 @@ impl Hiding {
     }
 
     /// Whether an obstacle with inradius `rho` could hide in link `l`.
-    fn room(&self, rho: f64, l: usize) -> bool {
-        match LADDER.iter().rev().find(|&&t| t <= rho) {
-            Some(&t) => self.pockets[l].has_room_for(t),
+    fn room(&mut self, rho: f64, l: usize) -> bool {
+        match LADDER.iter().rposition(|&t| t <= rho) {
+            Some(k) => {
+                *self.rooms[l][k].get_or_insert_with(|| self.pockets[l].has_room_for(LADDER[k]))
+            }
             None => true,
         }
     }
@@ -124,7 +130,7 @@ impl BatchChecker {
         if !self.validating {
             return self.hiding.covers;
         }
-        let h = &self.hiding;
+        let h = &mut self.hiding;
         if h.parts.is_none() {
             let mut parts = Vec::new();
             for (k, &SelfPair { a, b, .. }) in self.pairs.iter().enumerate() {
