@@ -13,9 +13,15 @@
 //! unknown_box=<0|1> joints=<0|1>` (medians; with `--unknown-box`, unknown space in that box is
 //! an obstacle for planning, so each cloud also remakes the planner's copy of the map and its
 //! grids; with `--joints`, each cloud is self-filtered at that joint state and the robot's
-//! volume in the box is observed free).
+//! volume in the box is observed free). With `--joints`, also the joint states themselves:
+//! `joint_same_us=` (the median joint state where the robot stands, as it streams them
+//! standing still: with an unknown box, not looked at again), `joint_moved_ms=` (the median
+//! joint state with the
+//! torso 3 mm higher than the last, and the snapshot when it freed voxels) and
+//! `joint_moved_freeing=` (how many of those freed voxels).
 
 use ember_engine::collision::Shape;
+use ember_engine::robot::Robot;
 use ember_engine::world::map::MapParams;
 use ember_engine::world::model::{World, WorldParams};
 use ember_engine::world::Object;
@@ -78,10 +84,10 @@ fn ingest(args: &Args) -> anyhow::Result<()> {
             .map(|b| ([b[0], b[1], b[2]], [b[3], b[4], b[5]])),
         self_filter_padding: 0.03,
     });
-    let robot = ember_engine::robot::Robot::builtin("fetch").expect("built-in");
+    let robot = Robot::builtin("fetch").expect("built-in");
     if let Some(q) = &args.joints {
         robot.validate(q)?;
-        world.set_joints(q.clone());
+        world.set_joints(&robot, q.clone());
     }
     // A head camera looking ahead (optical z along the base's x).
     let camera = Pose::translation(0.15, 0.0, 1.0)
@@ -130,13 +136,60 @@ fn ingest(args: &Args) -> anyhow::Result<()> {
             "map of {blocks} blocks ({memory_mb:.1} MB): a {}-point cloud folded in and snapshotted in {held_ms:.2} ms with the last snapshot held, {free_ms:.2} ms without",
             320 * 240
         );
+        let joint_keys = match &args.joints {
+            Some(q) => {
+                let (look_us, moved_ms, freeing) =
+                    joint_states(&mut world, &robot, q, args.repeats);
+                println!(
+                    "a joint state where the robot stands: {look_us:.1} µs; moved (the torso up 3 mm; {freeing} of {} freed voxels), with the snapshot when it did: {moved_ms:.2} ms",
+                    args.repeats
+                );
+                format!(" joint_same_us={look_us:.2} joint_moved_ms={moved_ms:.3} joint_moved_freeing={freeing}")
+            }
+            None => String::new(),
+        };
         println!(
-            "RESULT world_ingest blocks={blocks} memory_mb={memory_mb:.2} held_ms={held_ms:.3} free_ms={free_ms:.3} unknown_box={} joints={}",
+            "RESULT world_ingest blocks={blocks} memory_mb={memory_mb:.2} held_ms={held_ms:.3} free_ms={free_ms:.3} unknown_box={} joints={}{joint_keys}",
             u8::from(args.unknown_box.is_some()),
             u8::from(args.joints.is_some())
         );
     }
     Ok(())
+}
+
+/// Joint states at `q` and moved from it (see the module docs): the median time of one at
+/// `q` (where the robot stands: with an unknown box, within the tolerance of the last state
+/// looked at, so not looked at again),
+/// and of one with the torso raised 3 mm more each time (the arm's new volume in the box freed)
+/// followed, when it freed voxels, by the snapshot that carries them; and how many did. Leaves
+/// the joint state at `q`.
+fn joint_states(world: &mut World, robot: &Robot, q: &[f64], repeats: usize) -> (f64, f64, usize) {
+    let mut look: Vec<f64> = (0..repeats)
+        .map(|_| {
+            let t = Instant::now();
+            std::hint::black_box(world.set_joints(robot, q.to_vec()));
+            t.elapsed().as_secs_f64() * 1e6
+        })
+        .collect();
+    let mut freeing = 0;
+    let mut moved: Vec<f64> = (1..=repeats)
+        .map(|r| {
+            let mut up = q.to_vec();
+            up[0] = (up[0] + 0.003 * r as f64).min(robot.variables()[0].upper);
+            let t = Instant::now();
+            if world.set_joints(robot, up) {
+                freeing += 1;
+                std::hint::black_box(world.snapshot());
+            }
+            t.elapsed().as_secs_f64() * 1e3
+        })
+        .collect();
+    world.set_joints(robot, q.to_vec());
+    (
+        ember_sdk::stats::median(&mut look),
+        ember_sdk::stats::median(&mut moved),
+        freeing,
+    )
 }
 
 fn object(k: usize, dx: f64) -> Object {

@@ -54,7 +54,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<ExitCode> {
                         if let Some(q) = super::group_order(&robot, &names, &positions)
                             .filter(|q| robot.validate(q).is_ok())
                         {
-                            world.set_joints(q);
+                            world.set_joints(&robot, q);
                         }
                     }
                     Event::Cloud {

@@ -168,7 +168,7 @@ fn fuzz_inputs() {
     );
     let max_extent = config.map.max_object_extent();
     let world = std::cell::RefCell::new(World::new(&config.world_params()));
-    world.borrow_mut().set_joints(robot.middle());
+    world.borrow_mut().set_joints(&robot, robot.middle());
     let (fitted, attached) = (std::cell::Cell::new(0), std::cell::Cell::new(0));
     fuzz(
         "object update",

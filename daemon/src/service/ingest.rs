@@ -64,6 +64,8 @@ impl Ingest {
         let mut batch: Vec<(u64, Event)> = Vec::new();
         while !self.stop.load(Ordering::Relaxed) {
             let mut changed = false;
+            // Joint states taken this round: counted once the snapshot they make is out.
+            let mut moved = 0u64;
             while let Some((dropped, input)) = joints.receive(&self.robot, &mut joint_gaps) {
                 self.dropped(dropped, |i| &mut i.dropped_joints);
                 match input {
@@ -81,13 +83,10 @@ impl Ingest {
                                 positions: js.positions.clone(),
                             },
                         ));
-                        world.set_joints(js.positions);
-                        self.stats
-                            .inner
-                            .lock()
-                            .expect("stats lock")
-                            .inputs
-                            .joint_states += 1;
+                        // Where unknown space is an obstacle, the robot's volume there is
+                        // observed free (a change the round's snapshot carries).
+                        changed |= world.set_joints(&self.robot, js.positions);
+                        moved += 1;
                     }
                     Err(why) => self.stats.rejected(&why),
                 }
@@ -185,6 +184,12 @@ impl Ingest {
                 // Nothing was waiting: this slept until a client said it sent something (or
                 // the idle wait ended); should the wake-up service fail, sleep anyway.
                 std::thread::sleep(IDLE_WAIT);
+            }
+            if moved > 0 {
+                // Counted after the snapshot: a status that counts a joint state shows the
+                // robot's volume it freed.
+                let mut st = self.stats.inner.lock().expect("stats lock");
+                st.inputs.joint_states += moved;
             }
         }
         Ok(())

@@ -93,6 +93,11 @@ pub struct WorldParams {
     pub unknown_obstacles: Option<([f64; 3], [f64; 3])>,
 }
 
+/// How far (radians or metres, per joint) a joint state may be from the last one whose volume
+/// [`World::set_joints`] observed and not be looked at again: a milliradian moves a point a
+/// metre out by a millimetre, far inside the self-filter's padding.
+const LOOKED_TOLERANCE: f64 = 1e-3;
+
 /// What the planner sees: a consistent copy of the world at one instant.
 pub struct Snapshot {
     /// Objects as a scene (SPARK's input).
@@ -141,9 +146,13 @@ pub struct World {
     /// See [`WorldParams::unknown_obstacles`]; `None` without `use_map` (planning ignores
     /// the map then).
     unknown: Option<([f64; 3], [f64; 3])>,
-    /// With `unknown`: the map with the unknown space in that box occupied, made after each
-    /// change of the map (what planning avoids; FLAME and monitoring see the map itself).
-    planned_map: Option<Arc<OccupancyMap>>,
+    /// With `unknown`: the map with the unknown space in that box occupied (what planning
+    /// avoids; FLAME and monitoring see the map itself), made by the first snapshot after a
+    /// change of the map, so that a burst of changes (joint states) remakes it once.
+    planned_map: std::cell::OnceCell<Arc<OccupancyMap>>,
+    /// With `unknown`: the last joint state whose volume was observed (see
+    /// [`World::set_joints`]).
+    looked: Option<Vec<f64>>,
     objects_version: u64,
 }
 
@@ -195,7 +204,7 @@ fn voxelise(map: &OccupancyMap, alone: &Environment, lo: [f64; 3], hi: [f64; 3])
 impl World {
     /// An empty world.
     pub fn new(params: &WorldParams) -> Self {
-        let mut world = World {
+        World {
             scene: Scene::default(),
             pairs: PairSet::new(&ExperienceParams::default()),
             env: Environment::new(),
@@ -209,20 +218,28 @@ impl World {
             padding: params.self_filter_padding,
             carve: params.carve_padding,
             unknown: params.unknown_obstacles.filter(|_| params.use_map),
-            planned_map: None,
+            planned_map: std::cell::OnceCell::new(),
+            looked: None,
             objects_version: 0,
-        };
-        world.map_changed();
-        world
+        }
     }
 
-    /// Brings what planning sees of the map up to date after the map changed: with
-    /// [`WorldParams::unknown_obstacles`], the map with the unknown space in the box occupied.
+    /// Marks what planning sees of the map out of date after the map changed (see
+    /// [`World::planned_map`]).
     fn map_changed(&mut self) {
-        if let Some((lo, hi)) = self.unknown {
-            let mut planned = self.map.with_unknown_occupied(lo, hi);
-            planned.refresh_clearance();
-            self.planned_map = Some(Arc::new(planned));
+        self.planned_map = std::cell::OnceCell::new();
+    }
+
+    /// The map planning avoids: with [`WorldParams::unknown_obstacles`], the map with the
+    /// unknown space in the box occupied (remade on first use after a change), else the map.
+    fn planned_map(&self) -> &Arc<OccupancyMap> {
+        match self.unknown {
+            Some((lo, hi)) => self.planned_map.get_or_init(|| {
+                let mut planned = self.map.with_unknown_occupied(lo, hi);
+                planned.refresh_clearance();
+                Arc::new(planned)
+            }),
+            None => &self.map,
         }
     }
 
@@ -351,6 +368,8 @@ impl World {
         self.objects_version += 1;
         self.scene.attached = scene.attached;
         self.holding = Some(Arc::new(holding));
+        // What the robot holds is part of its volume: the next joint state looks again.
+        self.looked = None;
         Ok(())
     }
 
@@ -388,15 +407,44 @@ impl World {
         true
     }
 
-    /// Sets the joint state.
-    pub fn set_joints(&mut self, q: Vec<f64>) {
+    /// Sets the joint state. With [`WorldParams::unknown_obstacles`], the unknown voxels in the
+    /// box that `robot`'s padded spheres (the self-filter's) touch there are observed free, as
+    /// each cloud does: the robot is there, so nothing else is, and a plan starting where the
+    /// robot stands is not refused for its own unseen volume before a cloud comes in. True
+    /// when that changed what planning sees (the next snapshot remakes planning's map once,
+    /// however many joint states came before it).
+    pub fn set_joints(&mut self, robot: &Robot, q: Vec<f64>) -> bool {
         self.joints = Some(q);
+        let Some((lo, hi)) = self.unknown else {
+            return false;
+        };
+        let robot = self.holding.as_deref().unwrap_or(robot);
+        let Some(q) = self.joints.as_ref().filter(|q| robot.validate(q).is_ok()) else {
+            return false;
+        };
+        // A robot standing still streams the same state (give or take its encoders' noise):
+        // within `LOOKED_TOLERANCE` of the last state looked at, its spheres, padded by
+        // centimetres, cover nothing new worth a look (~0.2 ms with the Fetch's).
+        if self.looked.as_ref().is_some_and(|last| {
+            last.iter()
+                .zip(q)
+                .all(|(a, b)| (a - b).abs() <= LOOKED_TOLERANCE)
+        }) {
+            return false;
+        }
+        self.looked = Some(q.clone());
+        let placed = PlacedSpheres::at(robot, q, self.padding);
+        let touched = self.map.unknown_touched(placed.balls(), lo, hi);
+        if touched.is_empty() {
+            return false;
+        }
+        Arc::make_mut(&mut self.map).observe_free(&touched);
+        self.map_changed();
+        true
     }
 
     /// Folds a cloud into the map, dropping the robot's own points at the latest joint state
-    /// (and non-finite ones); says what was folded in. With
-    /// [`WorldParams::unknown_obstacles`], the unknown voxels in the box that the robot's
-    /// padded spheres touch are observed free.
+    /// (and non-finite ones); says what was folded in.
     pub fn insert_cloud(
         &mut self,
         robot: &Robot,
@@ -416,12 +464,6 @@ impl World {
         };
         let map = Arc::make_mut(&mut self.map);
         let report = map.insert_cloud_masked(points, sensor_pose, &mask);
-        // Where unknown space is an obstacle, the space the self-filter gives the robot (which
-        // no point there can ever mark occupied) is observed free: the robot is there, so
-        // nothing else is, and a start in the box is not refused for its own unseen volume.
-        if let (Some((lo, hi)), Some(robot)) = (self.unknown, &filter) {
-            map.free_unknown_touched(robot.balls(), lo, hi);
-        }
         if self.use_map {
             map.refresh_clearance();
         }
@@ -483,7 +525,7 @@ impl World {
         if self.use_map {
             // The planner's grids, kept up to date by the changes above; built here (the
             // ingest thread) when they are not, rather than by the first plan.
-            let planned = self.planned_map.as_ref().unwrap_or(&self.map);
+            let planned = self.planned_map();
             planned.clearance();
             env.set_map(Some(planned.clone()));
         }

@@ -314,7 +314,21 @@ fn unknown_voxels_a_ball_touches_in_a_box_become_free() {
     sut.insert_cloud(&wall(1.0, 0.0, 0.2), &Pose::identity(), None);
     let (lo, hi) = ([0.5, -0.2, -0.2], [1.3, 0.0, 0.2]);
     let ball = ([1.1, 0.0, 0.0], 0.08);
-    let marked = sut.free_unknown_touched([&ball], lo, hi);
+    // Two balls touching the same voxels: each block is named once, its masks joined.
+    let one = sut.unknown_touched([&ball], lo, hi);
+    let both = sut.unknown_touched([&ball, &([1.12, 0.0, 0.0], 0.08)], lo, hi);
+    let mut blocks: Vec<_> = both.iter().map(|&(b, _)| b).collect();
+    blocks.dedup();
+    assert_eq!(blocks.len(), both.len(), "a block named twice");
+    for (b, mask) in &one {
+        let joined = both.iter().find(|(c, _)| c == b).map_or(0, |&(_, m)| m);
+        assert_eq!(
+            joined & mask,
+            *mask,
+            "block {b:?} lost voxels of the first ball"
+        );
+    }
+    let marked = sut.observe_free(&one);
     for (p, state, what) in [
         (
             [1.1, -0.02, 0.0],
@@ -341,5 +355,5 @@ fn unknown_voxels_a_ball_touches_in_a_box_become_free() {
         assert_eq!(sut.occupancy(p), state, "{what} at {p:?}");
     }
     assert!(marked > 20, "{marked} marked");
-    assert_eq!(sut.free_unknown_touched([&ball], lo, hi), 0, "once only");
+    assert!(sut.unknown_touched([&ball], lo, hi).is_empty(), "once only");
 }

@@ -618,20 +618,29 @@ impl OccupancyMap {
         }
     }
 
-    /// Observes free, as one ray through it would (the log-odds of a miss), every voxel never
-    /// observed whose centre lies in the box `[lo, hi]` and whose cube one of `balls` (centre,
-    /// radius, metres) touches: space the robot fills, where nothing else can be. Returns how
-    /// many it marked.
-    pub fn free_unknown_touched<'a>(
-        &mut self,
+    /// Observes free, as one ray through them would, the voxels of `blocks` (key and mask, as
+    /// [`OccupancyMap::unknown_touched`] gives them); returns how many.
+    pub fn observe_free(&mut self, blocks: &[(BlockKey, u64)]) -> usize {
+        for &(b, mask) in blocks {
+            self.set_leaves(b, mask, self.miss);
+        }
+        blocks.iter().map(|&(_, m)| m.count_ones() as usize).sum()
+    }
+
+    /// The voxels never observed whose centre lies in the box `[lo, hi]` and whose cube one of
+    /// `balls` (centre, radius, metres) touches — space the robot fills, where nothing else can
+    /// be — per block (its key and a mask of its voxels), each block once; empty when there are
+    /// none. [`OccupancyMap::observe_free`] marks them.
+    pub fn unknown_touched<'a>(
+        &self,
         balls: impl IntoIterator<Item = &'a ([f64; 3], f64)>,
         lo: [f64; 3],
         hi: [f64; 3],
-    ) -> usize {
+    ) -> Vec<(BlockKey, u64)> {
         let Some((klo, khi)) = self.keys_centred_in(lo, hi) else {
-            return 0;
+            return Vec::new();
         };
-        let (mut marked, mut touched) = (0, Vec::new());
+        let mut touched: Vec<(BlockKey, u64)> = Vec::new();
         for &(c, r) in balls {
             // The voxels of the ball's box, within the box's.
             let (vlo, vhi) = (self.key_of(c.map(|v| v - r)), self.key_of(c.map(|v| v + r)));
@@ -640,7 +649,6 @@ impl OccupancyMap {
             if (0..3).any(|a| vlo[a] > vhi[a]) {
                 continue;
             }
-            touched.clear();
             self.unknown_leaves(vlo, vhi, |b, unknown| {
                 let mask = bits(unknown)
                     .filter(|&bit| {
@@ -651,12 +659,17 @@ impl OccupancyMap {
                     touched.push((b, mask));
                 }
             });
-            for &(b, mask) in &touched {
-                self.set_leaves(b, mask, self.miss);
-                marked += mask.count_ones() as usize;
-            }
         }
-        marked
+        // Neighbouring balls touch the same blocks: one entry per block.
+        touched.sort_unstable_by_key(|&(b, _)| b);
+        touched.dedup_by(|next, kept| {
+            let same = next.0 == kept.0;
+            if same {
+                kept.1 |= next.1;
+            }
+            same
+        });
+        touched
     }
 
     /// Sets a voxel to `occupied` (clamped log-odds), as reading a binary map does.
