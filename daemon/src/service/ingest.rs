@@ -173,7 +173,8 @@ impl Ingest {
                 self.record_all(&mut batch);
                 *cell = snap;
             } else if !batch.is_empty() {
-                // Inputs that changed nothing (refused ones): recorded as received.
+                // Inputs that changed nothing (refused ones, joint states that freed nothing):
+                // recorded as received.
                 let _cell = self.snapshot.lock().expect("snapshot lock");
                 self.record_all(&mut batch);
             } else if last_input.elapsed() < spin {
