@@ -587,19 +587,17 @@ pub(crate) fn search(
     stats: &mut PlanStats,
 ) -> Result<Vec<Vec<f64>>, PlanError> {
     let t0 = Instant::now();
-    let continuous: Vec<bool> = checker
-        .robot()
-        .variables()
-        .iter()
-        .map(|v| v.continuous)
-        .collect();
-    let dof = continuous.len();
+    let continuous = || checker.robot().variables().iter().map(|v| v.continuous);
     let mut trees = match SPARE_TREES.take() {
-        Some(mut spare) if spare[0].index.continuous() == continuous => {
+        Some(mut spare) if spare[0].index.continuous().iter().copied().eq(continuous()) => {
             spare.iter_mut().for_each(Tree::clear);
             spare
         }
-        _ => Box::new([Tree::new(dof, &continuous), Tree::new(dof, &continuous)]),
+        _ => {
+            let continuous: Vec<bool> = continuous().collect();
+            let dof = continuous.len();
+            Box::new([Tree::new(dof, &continuous), Tree::new(dof, &continuous)])
+        }
     };
     let [start_tree, goal_tree] = &mut *trees;
     let result = search_with(

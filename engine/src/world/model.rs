@@ -408,9 +408,9 @@ impl World {
     }
 
     /// Sets the joint state. With [`WorldParams::unknown_obstacles`], the unknown voxels in the
-    /// box that `robot`'s padded spheres (the self-filter's) touch there are observed free, as
-    /// each cloud does: the robot is there, so nothing else is, and a plan starting where the
-    /// robot stands is not refused for its own unseen volume before a cloud comes in. True
+    /// box that `robot`'s padded spheres (the self-filter's) touch there are observed free:
+    /// the robot is there, so nothing else is, and a plan starting where the robot stands is
+    /// not refused for its own unseen volume, with or without a cloud taken there. True
     /// when that changed what planning sees (the next snapshot remakes planning's map once,
     /// however many joint states came before it).
     pub fn set_joints(&mut self, robot: &Robot, q: Vec<f64>) -> bool {
