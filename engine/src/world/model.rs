@@ -88,8 +88,9 @@ pub struct WorldParams {
     pub carve_padding: Option<f64>,
     /// A box (base frame, metres: min and max corners) in which space never observed is an
     /// obstacle for planning, as occupied voxels are (with `use_map`); `None`: unknown space is
-    /// free everywhere (OctoMap's and MoveIt's convention). The robot's own volume there is
-    /// observed free with each cloud (see [`World::insert_cloud`]).
+    /// free everywhere (OctoMap's and MoveIt's convention). The robot's own volume there, with
+    /// what it holds, is observed free at each joint state (see [`World::set_joints`]) and
+    /// when it takes hold of an object.
     pub unknown_obstacles: Option<([f64; 3], [f64; 3])>,
 }
 
@@ -368,8 +369,10 @@ impl World {
         self.objects_version += 1;
         self.scene.attached = scene.attached;
         self.holding = Some(Arc::new(holding));
-        // What the robot holds is part of its volume: the next joint state looks again.
+        // What the robot holds is part of its volume, observed free at once where it sits
+        // now in the unknown box.
         self.looked = None;
+        self.look(robot);
         Ok(())
     }
 
@@ -415,6 +418,13 @@ impl World {
     /// however many joint states came before it).
     pub fn set_joints(&mut self, robot: &Robot, q: Vec<f64>) -> bool {
         self.joints = Some(q);
+        self.look(robot)
+    }
+
+    /// With [`WorldParams::unknown_obstacles`]: observes the volume of `robot` (with what it
+    /// holds) at the latest joint state free in the box (see [`World::set_joints`]); true
+    /// when that changed what planning sees.
+    fn look(&mut self, robot: &Robot) -> bool {
         let Some((lo, hi)) = self.unknown else {
             return false;
         };

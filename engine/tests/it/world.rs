@@ -268,9 +268,9 @@ fn unknown_space_in_the_configured_box_is_an_obstacle_until_seen() {
 }
 
 /// Where unknown space is an obstacle, the robot's own volume in the box is observed free
-/// (the self-filter's space: no point can mark it occupied), with the joint state itself and
-/// with each cloud after it: a start whose arm lies in the unseen box is valid once the
-/// joint state is in, while unseen space beside the arm stays an obstacle.
+/// (the self-filter's space: no point can mark it occupied) with its joint state: a start
+/// whose arm lies in the unseen box is valid once the joint state is in, while unseen space
+/// beside the arm stays an obstacle. An object the robot takes hold of is freed at once.
 #[test]
 fn the_robots_own_volume_in_the_unknown_box_is_free_at_its_joint_state() {
     let robot = Robot::builtin("fetch").unwrap();
@@ -323,8 +323,33 @@ fn the_robots_own_volume_in_the_unknown_box_is_free_at_its_joint_state() {
         Occupancy::Free,
         "FLAME's map too"
     );
-    // A cloud does the same for the joint state before it (a world whose joint state came
-    // before the box was unseen is not needed: clouds free it at every fold).
+    // An object held on top of the hand is freed with the attach (no new joint state).
+    let grasp = Pose::translation(0.0, 0.0, 0.12);
+    let ahead: [f64; 3] = (robot.tip_pose(&q).unwrap() * grasp)
+        .translation
+        .vector
+        .into();
+    assert!(
+        sut.snapshot().env.sphere_collides(ahead, 0.005),
+        "unseen above the hand"
+    );
+    let tip_link = robot.links()[robot.tip()].name.clone();
+    sut.apply(
+        &robot,
+        ObjectChange::Attach {
+            link: tip_link,
+            id: "probe".into(),
+            shape: Some(Shape::cuboid([0.04, 0.04, 0.04])),
+            grasp,
+        },
+    )
+    .unwrap();
+    assert_eq!(
+        sut.snapshot().map.occupancy(ahead),
+        Occupancy::Free,
+        "the held object's volume"
+    );
+    // A cloud frees nothing of the robot's volume: only joint states do.
     let mut clouded = World::new(&params);
     clouded.set_joints(&robot, away_q);
     clouded.insert_cloud(&robot, &away, &camera);
