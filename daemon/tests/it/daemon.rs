@@ -553,7 +553,7 @@ fn unknown_space_in_the_configured_box_refuses_a_goal_there() {
     // camera has seen.
     let (d, dir) = Daemon::start_configured(
         "unknown",
-        "[planner]\nunknown_obstacle_min = [0.55, 0.0, 0.76]\nunknown_obstacle_max = [0.8, 0.2, 0.96]\n",
+        "[map]\nresolution = 0.01\n[planner]\nunknown_obstacle_min = [0.55, 0.0, 0.76]\nunknown_obstacle_max = [0.8, 0.2, 0.96]\n",
     );
     let client = d.client();
     publish_table(&client);
@@ -569,11 +569,14 @@ fn unknown_space_in_the_configured_box_refuses_a_goal_there() {
     assert_eq!(reply.status, Status::Ok, "{}", reply.message());
     // The robot standing in the box: its own volume is unseen too, so a plan from there is
     // refused until the daemon has its joint state there (the self-filter's space is then
-    // observed free; no cloud is needed).
+    // observed free; no cloud is needed). All around it is still unseen, so the plan asked
+    // is a small turn of the wrist.
     let at_can = goal_near_can();
-    let mut from_can = call(FREE_GOAL);
-    from_can.start = at_can.clone();
-    let reply = client.plan(&from_can, Duration::from_secs(20)).unwrap();
+    let mut turn = call(FREE_GOAL);
+    turn.start = at_can.clone();
+    turn.goals = vec![at_can.clone()];
+    turn.goals[0][7] += 0.02;
+    let reply = client.plan(&turn, Duration::from_secs(20)).unwrap();
     assert_eq!(
         reply.status,
         Status::StartInCollision,
@@ -583,7 +586,17 @@ fn unknown_space_in_the_configured_box_refuses_a_goal_there() {
     client.publish_joints(&at_can).unwrap();
     let s = wait_for(&client, "the joint state", |s| s.joint_states == 1);
     assert_eq!(s.clouds, 0);
-    let reply = client.plan(&from_can, Duration::from_secs(20)).unwrap();
+    let reply = client.plan(&turn, Duration::from_secs(20)).unwrap();
+    assert_eq!(reply.status, Status::Ok, "{}", reply.message());
+    // A box taken on top of the hand reaches unseen space in the box: it is part of the
+    // robot's volume from the attach on, observed free then, with no new joint state.
+    let on_top = [0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 1.0];
+    client
+        .attach_shape("probe", "gripper_link", ShapeKind::Box, [0.06; 3], on_top)
+        .unwrap();
+    let s = wait_for(&client, "the attach", |s| s.world_attached == 1);
+    assert_eq!((s.joint_states, s.rejected), (1, 0));
+    let reply = client.plan(&turn, Duration::from_secs(20)).unwrap();
     assert_eq!(reply.status, Status::Ok, "{}", reply.message());
     std::fs::remove_dir_all(&dir).ok();
 }
