@@ -10,6 +10,7 @@
 //! - `retrieval`: SPARK and FLAME retrieval time against database size (against linear scans);
 //! - `paper`: the paper's experiments (training-size sweep, retrieval scaling), tables and plots;
 //! - `validity --problems DIR...`: start/goal verdicts against an exact FCL mesh checker;
+//! - `paths --problems DIR... --paths FILE...`: returned paths (any planner's) checked on the exact geometry;
 //! - `trajectory`: time-optimal parameterisation time and durations against `toppra`;
 //! - `world`: the world model's upkeep (SPARK pairs, snapshots) under thousands of objects.
 
@@ -22,6 +23,7 @@ mod map;
 mod monitor;
 mod nearest;
 mod paper;
+mod paths;
 mod plan;
 mod plot;
 mod python;
@@ -64,6 +66,8 @@ enum Bench {
     Paper(paper::Args),
     /// Start/goal verdicts against an exact mesh checker on FCL (MoveIt's), same problems.
     Validity(validity::Args),
+    /// Returned paths (any planner's) checked on Ember's exact geometry at a fine step.
+    Paths(paths::Args),
     /// Trajectory parameterisation time per path and durations against toppra (same paths).
     Trajectory(trajectory::Args),
 }
@@ -81,6 +85,7 @@ fn main() -> anyhow::Result<()> {
         Bench::Retrieval(a) => retrieval::run(a),
         Bench::Paper(a) => paper::run(a),
         Bench::Validity(a) => validity::run(a),
+        Bench::Paths(a) => paths::run(a),
         Bench::Trajectory(a) => trajectory::run(a),
     }
 }

@@ -2,7 +2,7 @@
 //!
 //! Flags: `--robot` (default: the folder's `config.yaml`, else fetch) with `--srdf`, `--group`,
 //! `--package-path`, `--sphere-protrusion`; `--time-limit S` per problem (default 10),
-//! `--seed N`, `--no-simplify`, `--range R`. With `--clouds DIR` the obstacles are not the
+//! `--seed N`, `--no-simplify`, `--range R`, `--validation-refine K`. With `--clouds DIR` the obstacles are not the
 //! scene's objects but the point cloud `DIR/<set>/cloudNNNN.pcd` (ASCII PCD, x y z in the base
 //! frame, as the VAMP peer writes them), its points marked occupied in an occupancy map at
 //! `--cloud-resolution` (default 0.01 m); problems without a cloud are skipped (VAMP found
@@ -21,13 +21,13 @@
 //! reported apart) and ends with `RESULT plan set=<folder> n=<problems> solved=<count>
 //! median_ms=<f> mean_ms=<f> p95_ms=<f> start_refused=<k> goal_refused=<k>
 //! simplify_ms=<median> validate_ms=<median> total_median_ms=<median> median_iterations=
-//! median_nodes= raw_length_median= length_median= solved_sum_ms=` (configuration-space path
+//! median_nodes= raw_length_median= length_median= solved_sum_ms= refined=` (configuration-space path
 //! length, the search's and the returned path's; the solved problems' planning times summed,
 //! steadier than the median when two builds are compared) and the time split; a failure counts as the time limit in the mean, as in
 //! the paper. `total_median_ms` is over the solved problems: planning, simplification and
 //! validation, what a caller waits for. `--per-problem` also prints, as each problem ends,
 //! `PROBLEM set= index= solved=1 ms= total_ms= search_ms= iterations= nodes= exact_fallbacks=
-//! raw_length= length= waypoints= retreat_states=` (or
+//! raw_length= length= waypoints= retreat_states= refined=` (or
 //! `solved=0 outcome=start_in_collision|goal_in_collision|timeout|failed`).
 
 use ember_engine::planning::PlanError;
@@ -39,6 +39,7 @@ use ember_engine::world::map::{MapParams, OccupancyMap};
 use ember_engine::world::Environment;
 use ember_sdk::stats::summary;
 use std::borrow::Cow;
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -63,6 +64,9 @@ pub struct Args {
     /// RRT-Connect range (longest extension); default: the planner's.
     #[arg(long)]
     range: Option<f64>,
+    /// Validate returned paths this many times finer than the search checks edges.
+    #[arg(long, default_value_t = 1.0)]
+    validation_refine: f64,
     /// Plan against point clouds instead of the scenes' objects: `DIR/<set>/cloudNNNN.pcd`.
     #[arg(long)]
     clouds: Option<PathBuf>,
@@ -76,6 +80,12 @@ pub struct Args {
     /// Also print one `PROBLEM` line per problem (time, iterations, nodes, exact fallbacks).
     #[arg(long)]
     per_problem: bool,
+    /// Write each solved problem's returned path to this file, one JSON object a line:
+    /// `{"set", "index", "joints", "continuous", "path"}` (joint names in the path's order;
+    /// the continuous ones, whose edges go the short way round), for checkers outside Ember
+    /// (`bench/path_truth.py`).
+    #[arg(long)]
+    paths_out: Option<PathBuf>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -97,6 +107,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "simplify_ms",
         "validate_ms"
     );
+    let mut paths_out = match &args.paths_out {
+        Some(f) => Some(std::io::BufWriter::new(
+            std::fs::File::create(f)
+                .map_err(|e| anyhow::anyhow!("--paths-out {}: {e}", f.display()))?,
+        )),
+        None => None,
+    };
     let mut loaded: Option<(String, ember_engine::robot::Robot)> = None;
     for dir in &args.problems {
         let default = ProblemSet::robot_of(dir).unwrap_or_else(|| "fetch".into());
@@ -161,13 +178,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     time_limit: Duration::from_secs_f64(args.time_limit),
                     simplify: !args.no_simplify,
                     range: args.range.unwrap_or(PlannerParams::default().range),
+                    validation_refine: args.validation_refine,
                     ..Default::default()
                 },
             };
             if args.map_compare {
                 objects_only.plan(robot, &p.scene.environment()?, &req, args.time_limit);
             }
-            let outcome = tally.plan(robot, &env, &req, args.time_limit);
+            let (outcome, path) = tally.plan(robot, &env, &req, args.time_limit);
+            if let (Some(out), Some(path)) = (&mut paths_out, path) {
+                let vars = robot.variables();
+                let joints: Vec<&str> = vars.iter().map(|v| &v.name[..]).collect();
+                let wraps = vars.iter().filter(|v| v.continuous).map(|v| &v.name[..]);
+                let line = serde_json::json!({
+                    "set": set.name, "index": p.index, "joints": joints,
+                    "continuous": wraps.collect::<Vec<_>>(), "path": path,
+                });
+                writeln!(out, "{line}")?;
+            }
             // The map alone, built anew just before as for the other runs (not warmed by them).
             if let Some(file) = voxels.take() {
                 let mut alone = Environment::new();
@@ -217,6 +245,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         loaded = Some((spec.robot.clone(), robot));
     }
+    if let Some(out) = &mut paths_out {
+        out.flush()?;
+    }
     for line in results {
         println!("{line}");
     }
@@ -242,18 +273,20 @@ struct Tally {
     /// Per solved problem: the search's path length, and the returned path's.
     raw_length: Vec<f64>,
     length: Vec<f64>,
+    /// Solved problems searched again at the validation's resolution.
+    refined: usize,
 }
 
 impl Tally {
     /// Plans one request and counts the outcome (a failure as the time limit); returns the
-    /// outcome as `--per-problem` prints it.
+    /// outcome as `--per-problem` prints it, and the path when solved.
     fn plan(
         &mut self,
         robot: &Robot,
         env: &Environment,
         req: &PlanRequest,
         time_limit: f64,
-    ) -> String {
+    ) -> (String, Option<Vec<Vec<f64>>>) {
         let t = Instant::now();
         match planning::plan(robot, env, req, &mut UniformSampler) {
             Ok(res) => {
@@ -270,9 +303,10 @@ impl Tally {
                 self.nodes.push(res.stats.tree_nodes as f64);
                 self.raw_length.push(res.stats.length_before);
                 self.length.push(res.stats.length_after);
-                format!(
+                self.refined += res.stats.refined as usize;
+                let line = format!(
                     "solved=1 ms={ms:.3} total_ms={:.3} search_ms={:.3} iterations={} nodes={} exact_fallbacks={} \
-                     raw_length={:.4} length={:.4} waypoints={} retreat_states={}",
+                     raw_length={:.4} length={:.4} waypoints={} retreat_states={} refined={}",
                     total * 1e3,
                     res.stats.search_s * 1e3,
                     res.stats.iterations,
@@ -281,8 +315,10 @@ impl Tally {
                     res.stats.length_before,
                     res.stats.length_after,
                     res.path.len(),
-                    res.stats.retreat_states
-                )
+                    res.stats.retreat_states,
+                    res.stats.refined
+                );
+                (line, Some(res.path))
             }
             Err(e) => {
                 let outcome = match e {
@@ -298,7 +334,7 @@ impl Tally {
                     _ => "failed",
                 };
                 self.times.push(time_limit * 1e3);
-                format!("solved=0 outcome={outcome}")
+                (format!("solved=0 outcome={outcome}"), None)
             }
         }
     }
@@ -326,8 +362,9 @@ impl Tally {
              simplify_ms={simp:.3} validate_ms={val:.3} total_median_ms={total:.3} \
              median_iterations={median_iterations:.0} median_nodes={median_nodes:.0} \
              raw_length_median={raw_length:.3} length_median={length:.3} \
-             solved_sum_ms={:.3} {}{extra}",
+             solved_sum_ms={:.3} refined={} {}{extra}",
             self.solved_sum,
+            self.refined,
             self.split.keys()
         )
     }

@@ -67,6 +67,10 @@ pub struct PlannerParams {
     pub range: f64,
     /// Edge-check resolution, configuration-space distance.
     pub resolution: f64,
+    /// The returned path is validated on the exact geometry at `resolution` divided by this
+    /// (at least 1): a hand's corner moves centimetres between two states the resolution
+    /// apart and can graze an object between them on the approach to a grasp (see [`plan`]).
+    pub validation_refine: f64,
     /// Wall-clock limit for the search.
     pub time_limit: Duration,
     /// Iteration limit for the search.
@@ -122,6 +126,7 @@ impl Default for PlannerParams {
         PlannerParams {
             range: 1.0,
             resolution: DEFAULT_RESOLUTION,
+            validation_refine: 1.0,
             time_limit: Duration::from_secs(10),
             max_iterations: 5_000_000,
             seed: 0,
@@ -171,8 +176,9 @@ pub enum PlanError {
         /// Restarts tried.
         attempts: usize,
     },
-    /// The path failed the final validation on the exact geometry (the sphere model does not
-    /// cover the geometry it was fitted to: a bug or a corrupt sphere cache).
+    /// The path failed the final validation on the exact geometry, also when searched again
+    /// at the validation's resolution (the sphere model does not cover the geometry it was
+    /// fitted to: a bug or a corrupt sphere cache).
     #[error("the path failed exact validation: {0}")]
     InvalidPath(Contact),
     /// The timing parameters are out of range.
@@ -256,6 +262,9 @@ pub struct PlanStats {
     pub length_after: f64,
     /// Timing the path (blends checked on the exact geometry), seconds.
     pub timing_s: f64,
+    /// 1 when the validation refused the path found at the planner's resolution and this one
+    /// was searched again at the validation's, finer (see [`plan`]).
+    pub refined: u32,
 }
 
 impl PlanStats {
@@ -295,7 +304,34 @@ pub fn path_length(robot: &Robot, path: &[Vec<f64>]) -> f64 {
 /// let res = plan(&fetch, &Environment::new(), &req, &mut UniformSampler).unwrap();
 /// assert_eq!(res.path.last().unwrap(), &goal);
 /// ```
+///
+/// The returned path is validated on the exact geometry, its edges walked
+/// `params.validation_refine` times finer than the search's resolution. Should that walk find
+/// a contact the search's own checks passed between two of their states (a graze), the plan is
+/// searched once more at the validation's resolution, within what is left of the time limit
+/// (`stats.refined` is then 1).
 pub fn plan(
+    robot: &Robot,
+    env: &Environment,
+    request: &PlanRequest,
+    sampler: &mut dyn Sampler,
+) -> Result<PlanResult, PlanError> {
+    let t = Instant::now();
+    match plan_once(robot, env, request, sampler) {
+        Err(PlanError::InvalidPath(_)) if request.params.validation_refine > 1.0 => {
+            let mut finer = request.clone();
+            finer.params.resolution /= request.params.validation_refine;
+            finer.params.time_limit = finer.params.time_limit.saturating_sub(t.elapsed());
+            let mut res = plan_once(robot, env, &finer, sampler)?;
+            res.stats.refined = 1;
+            Ok(res)
+        }
+        other => other,
+    }
+}
+
+/// [`plan`] at the request's resolution.
+fn plan_once(
     robot: &Robot,
     env: &Environment,
     request: &PlanRequest,
@@ -305,7 +341,8 @@ pub fn plan(
     if let Some(timing) = &params.timing {
         timing.validate().map_err(PlanError::InvalidTiming)?;
     }
-    let mut checker = Validity::new(robot, env, params.resolution, params.exact_radius);
+    let mut checker = Validity::new(robot, env, params.resolution, params.exact_radius)
+        .validating_at(params.resolution / params.validation_refine.max(1.0));
     let mut rng = PlannerRng::seed_from_u64(params.seed);
     let mut stats = PlanStats::default();
     robot

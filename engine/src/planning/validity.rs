@@ -27,6 +27,8 @@ pub struct Validity<'a> {
     anchors: Vec<Vec<f64>>,
     exact_radius: f64,
     resolution: f64,
+    /// Resolution of [`Validity::path_contact`]'s walk.
+    validation_resolution: f64,
     scratch: Vec<f64>,
     state: Vec<f64>,
     motions: u64,
@@ -51,11 +53,19 @@ impl<'a> Validity<'a> {
             anchors: Vec::new(),
             exact_radius,
             resolution: resolution.max(1e-6),
+            validation_resolution: resolution.max(1e-6),
             scratch: vec![0.0; robot.dof()],
             state: vec![0.0; robot.dof()],
             motions: 0,
             fallbacks: 0,
         }
+    }
+
+    /// Validates returned paths ([`Validity::path_contact`]) at `resolution` (by default
+    /// the checks' own).
+    pub fn validating_at(mut self, resolution: f64) -> Self {
+        self.validation_resolution = resolution.max(1e-6);
+        self
     }
 
     /// The robot checked.
@@ -254,8 +264,9 @@ impl<'a> Validity<'a> {
     }
 
     /// The first contact along `path` (waypoints, and the states of each edge at the
-    /// resolution) in the exact geometry, as [`ExactChecker::motion_contact`] walks it, or
-    /// `None` when every state is free: the validation of a returned path.
+    /// validation's resolution, see [`Validity::validating_at`]) in the exact geometry, as
+    /// [`ExactChecker::motion_contact`] walks it, or `None` when every state is free: the
+    /// validation of a returned path.
     ///
     /// The states go eight at a time through the batch checker in validation mode first. Its
     /// spheres cover every link's geometry, so a state they clear is free in the exact
@@ -264,7 +275,7 @@ impl<'a> Validity<'a> {
     /// the exact checker; an edge with a state it finds in contact is walked again in order
     /// by the exact checker, to name its first contact.
     pub fn path_contact(&mut self, path: &[Vec<f64>]) -> Option<Contact> {
-        let (robot, resolution) = (self.robot, self.resolution);
+        let (robot, resolution) = (self.robot, self.validation_resolution);
         if let Some(c) = self.exact.static_contact() {
             return Some(c.clone());
         }

@@ -264,3 +264,67 @@ fn a_set_cancel_flag_stops_the_search() {
         other => panic!("expected a cancelled plan, got {other:?}"),
     }
 }
+
+/// A grain that a finger sweeps through between two states the search's resolution apart:
+/// the validation at that resolution passes the motion, at `validation_refine` times finer
+/// it finds the grain. A plan asked to validate finer comes back clear of it at that
+/// resolution.
+#[test]
+fn a_finer_validation_finds_a_graze_between_checked_states_and_plans_around_it() {
+    use ember_engine::collision::exact::ExactChecker;
+    use ember_engine::collision::Shape;
+    use ember_engine::planning::validity::Validity;
+    use ember_engine::world::Object;
+    let robot = Robot::builtin("fetch").unwrap();
+    let a = vec![0.2, 0.5, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0];
+    let mut b = a.clone();
+    b[1] += 0.5;
+    let n = (robot.distance(&a, &b) / DEFAULT_RESOLUTION).ceil() as usize;
+    let finger = robot.link_index("l_gripper_finger_link").unwrap();
+    let state = |t: f64| {
+        let mut q = vec![0.0; a.len()];
+        robot.interpolate(&a, &b, t, &mut q);
+        q
+    };
+    // Where a finger is halfway between two checked states, with both of them clear of it.
+    let grain = (1..n - 1)
+        .map(|k| {
+            // The centre of the finger's collision shape.
+            let at = robot
+                .link_poses(&state((k as f64 + 0.5) / n as f64))
+                .unwrap()[finger]
+                * robot.links()[finger].collision[0].origin;
+            let p = at.translation.vector;
+            Environment::from_objects([Object {
+                name: "grain".into(),
+                shape: Shape::Sphere { radius: 1e-3 },
+                pose: Pose::translation(p.x, p.y, p.z),
+            }])
+            .unwrap()
+        })
+        .enumerate()
+        .find(|(k, env)| {
+            let mut exact = ExactChecker::new(&robot, env);
+            let (k, n) = (*k + 1, n as f64);
+            exact.motion_contact(&a, &b, DEFAULT_RESOLUTION).is_none()
+                && exact.contact(&state((k as f64 + 0.5) / n)).is_some()
+        })
+        .map(|(_, env)| env)
+        .expect("a grain between two checked states");
+    let path = [a.clone(), b.clone()];
+    let mut coarse = Validity::new(&robot, &grain, DEFAULT_RESOLUTION, 0.0);
+    assert_eq!(coarse.path_contact(&path), None, "between the states");
+    let mut fine = Validity::new(&robot, &grain, DEFAULT_RESOLUTION, 0.0)
+        .validating_at(DEFAULT_RESOLUTION / 8.0);
+    assert!(fine.path_contact(&path).is_some(), "walked finer");
+    // A plan validated finer is clear of the grain at that resolution.
+    let mut req = request(a.clone(), Goal::Joints(vec![b.clone()]), 3);
+    req.params.validation_refine = 8.0;
+    let res = planning::plan(&robot, &grain, &req, &mut UniformSampler).unwrap();
+    assert!(path_is_valid(
+        &robot,
+        &grain,
+        &res.path,
+        DEFAULT_RESOLUTION / 8.0
+    ));
+}

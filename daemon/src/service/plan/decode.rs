@@ -153,6 +153,7 @@ pub fn decode(
                 time_limit: Duration::from_secs_f64(time_limit),
                 range: config.planner.range,
                 simplify: config.planner.simplify,
+                validation_refine: config.planner.validation_refine,
                 timing,
                 ..Default::default()
             },
