@@ -63,6 +63,8 @@ def main():
         print(f"RESULT vamp_paths set={name}_{robot} solved={len(raw)} "
               f"raw_length_median={st.median(raw):.3f} length_median={st.median(length):.3f} "
               f"waypoints_median={st.median(waypoints):.0f} simplify_median_ms={st.median(ms):.4f}")
+    if dump:
+        dump.close()
 
 
 if __name__ == "__main__":

@@ -319,8 +319,10 @@ pub fn plan(
     let t = Instant::now();
     match plan_once(robot, env, request, sampler) {
         Err(PlanError::InvalidPath(_)) if request.params.validation_refine > 1.0 => {
+            // Searched and validated at the first validation's resolution.
             let mut finer = request.clone();
             finer.params.resolution /= request.params.validation_refine;
+            finer.params.validation_refine = 1.0;
             finer.params.time_limit = finer.params.time_limit.saturating_sub(t.elapsed());
             let mut res = plan_once(robot, env, &finer, sampler)?;
             res.stats.refined = 1;
