@@ -1,10 +1,11 @@
 //! `paths --problems DIR... --paths FILE...`: returned paths (any planner's) checked on Ember's exact
 //! geometry at a fine step: how many touch the scene or the robot itself.
 //!
-//! FILE holds one JSON object a line, `{"set", "index", "joints", "path"}`, as `plan
-//! --paths-out` and `bench/vamp_paths_peer.py --dump` write them; `joints` names the robot's
-//! group joints in the path's order. Each edge is checked as the robot's model moves along it
-//! (continuous joints the short way round), states at most `--step` apart (configuration-space
+//! FILE holds one JSON object a line, `{"set", "index", "joints", "path"}` and optionally
+//! `"continuous"`, as `plan --paths-out` and `bench/vamp_paths_peer.py --dump` write them;
+//! `joints` names the robot's group joints in the path's order. Each edge is checked as the
+//! planner moved along it (straight, the `continuous` joints the short way round, whichever
+//! the checking robot's joints are), states at most `--step` apart (configuration-space
 //! distance, default 0.01), ends included, on the exact geometry (the meshes' convex parts,
 //! the SRDF's self pairs), with the joints outside the group at the request's start values.
 //! Prints `TOUCH file= set= index= at=start|goal|between edge=<k> t=<f> contact=<what>` for
@@ -40,7 +41,42 @@ struct Record {
     set: String,
     index: usize,
     joints: Vec<String>,
+    /// Joints whose edges went the short way round in the planner's model (none: straight).
+    #[serde(default)]
+    continuous: Vec<String>,
     path: Vec<Vec<f64>>,
+}
+
+/// The first state along the edge `a` → `b` in contact, at most `step` apart, ends included,
+/// moving as the planner did (`wraps`: the joints that went the short way round), whatever
+/// the checking robot's joints are: `(t, contact)`.
+fn edge_contact(
+    exact: &mut ExactChecker,
+    (a, b): (&[f64], &[f64]),
+    wraps: &[bool],
+    step: f64,
+) -> Option<(f64, ember_engine::collision::checker::Contact)> {
+    use std::f64::consts::{PI, TAU};
+    let d: Vec<f64> = a
+        .iter()
+        .zip(b)
+        .zip(wraps)
+        .map(|((x, y), &w)| match w {
+            true => (y - x + PI).rem_euclid(TAU) - PI,
+            false => y - x,
+        })
+        .collect();
+    let n = (d.iter().map(|v| v * v).sum::<f64>().sqrt() / step)
+        .ceil()
+        .max(1.0) as usize;
+    let mut q = a.to_vec();
+    (0..=n).find_map(|i| {
+        let t = i as f64 / n as f64;
+        for (k, v) in q.iter_mut().enumerate() {
+            *v = a[k] + d[k] * t;
+        }
+        exact.contact(&q).map(|c| (t, c))
+    })
 }
 
 /// Per set: paths, touching, touching between free ends, skipped.
@@ -91,13 +127,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 .iter()
                 .map(|w| order.iter().map(|&k| w[k]).collect())
                 .collect();
+            let wraps: Vec<bool> = names
+                .iter()
+                .map(|n| rec.continuous.iter().any(|c| c == n))
+                .collect();
             let r = p.scene.robot_with(&robot, &p.request.start_joints)?;
             let env = p.scene.environment()?;
             let mut exact = ExactChecker::new(&r, &env);
             c[0] += 1;
             let hit = path.windows(2).enumerate().find_map(|(k, w)| {
-                exact
-                    .motion_contact(&w[0], &w[1], args.step)
+                edge_contact(&mut exact, (&w[0], &w[1]), &wraps, args.step)
                     .map(|(t, what)| (k, t, what))
             });
             let Some((edge, t, what)) = hit else {
