@@ -303,7 +303,7 @@ impl Tally {
                 self.nodes.push(res.stats.tree_nodes as f64);
                 self.raw_length.push(res.stats.length_before);
                 self.length.push(res.stats.length_after);
-                self.refined += res.stats.refined as usize;
+                self.refined += usize::from(res.stats.refined);
                 let line = format!(
                     "solved=1 ms={ms:.3} total_ms={:.3} search_ms={:.3} iterations={} nodes={} exact_fallbacks={} \
                      raw_length={:.4} length={:.4} waypoints={} retreat_states={} refined={}",
@@ -316,7 +316,7 @@ impl Tally {
                     res.stats.length_after,
                     res.path.len(),
                     res.stats.retreat_states,
-                    res.stats.refined
+                    u8::from(res.stats.refined)
                 );
                 (line, Some(res.path))
             }

@@ -262,9 +262,9 @@ pub struct PlanStats {
     pub length_after: f64,
     /// Timing the path (blends checked on the exact geometry), seconds.
     pub timing_s: f64,
-    /// 1 when the validation refused the path found at the planner's resolution and this one
-    /// was searched again at the validation's, finer (see [`plan`]).
-    pub refined: u32,
+    /// The validation refused the path found at the planner's resolution and this one was
+    /// searched again at the validation's, finer (see [`plan`]).
+    pub refined: bool,
 }
 
 impl PlanStats {
@@ -309,7 +309,7 @@ pub fn path_length(robot: &Robot, path: &[Vec<f64>]) -> f64 {
 /// `params.validation_refine` times finer than the search's resolution. Should that walk find
 /// a contact the search's own checks passed between two of their states (a graze), the plan is
 /// searched once more at the validation's resolution, within what is left of the time limit
-/// (`stats.refined` is then 1).
+/// (`stats.refined` is then set).
 pub fn plan(
     robot: &Robot,
     env: &Environment,
@@ -325,7 +325,7 @@ pub fn plan(
             finer.params.validation_refine = 1.0;
             finer.params.time_limit = finer.params.time_limit.saturating_sub(t.elapsed());
             let mut res = plan_once(robot, env, &finer, sampler)?;
-            res.stats.refined = 1;
+            res.stats.refined = true;
             Ok(res)
         }
         other => other,
