@@ -21,13 +21,13 @@
 //! reported apart) and ends with `RESULT plan set=<folder> n=<problems> solved=<count>
 //! median_ms=<f> mean_ms=<f> p95_ms=<f> start_refused=<k> goal_refused=<k>
 //! simplify_ms=<median> validate_ms=<median> total_median_ms=<median> median_iterations=
-//! median_nodes= raw_length_median= length_median= solved_sum_ms= refined=` (configuration-space path
+//! median_nodes= raw_length_median= length_median= solved_sum_ms= refined= uncertified=` (configuration-space path
 //! length, the search's and the returned path's; the solved problems' planning times summed,
 //! steadier than the median when two builds are compared) and the time split; a failure counts as the time limit in the mean, as in
 //! the paper. `total_median_ms` is over the solved problems: planning, simplification and
 //! validation, what a caller waits for. `--per-problem` also prints, as each problem ends,
 //! `PROBLEM set= index= solved=1 ms= total_ms= search_ms= iterations= nodes= exact_fallbacks=
-//! raw_length= length= waypoints= retreat_states= refined=` (or
+//! raw_length= length= waypoints= retreat_states= refined= uncertified=` (or
 //! `solved=0 outcome=start_in_collision|goal_in_collision|timeout|failed`).
 
 use ember_engine::planning::PlanError;
@@ -67,6 +67,9 @@ pub struct Args {
     /// Validate returned paths this many times finer than the search checks edges.
     #[arg(long, default_value_t = 1.0)]
     validation_refine: f64,
+    /// Certify returned paths between their validated states (the engine's `certify`).
+    #[arg(long)]
+    certify: bool,
     /// Plan against point clouds instead of the scenes' objects: `DIR/<set>/cloudNNNN.pcd`.
     #[arg(long)]
     clouds: Option<PathBuf>,
@@ -179,6 +182,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     simplify: !args.no_simplify,
                     range: args.range.unwrap_or(PlannerParams::default().range),
                     validation_refine: args.validation_refine,
+                    certify: args.certify,
                     ..Default::default()
                 },
             };
@@ -275,6 +279,8 @@ struct Tally {
     length: Vec<f64>,
     /// Solved problems searched again at the validation's resolution.
     refined: usize,
+    /// Segments certification left uncertified, over the solved problems.
+    uncertified: u64,
 }
 
 impl Tally {
@@ -304,9 +310,11 @@ impl Tally {
                 self.raw_length.push(res.stats.length_before);
                 self.length.push(res.stats.length_after);
                 self.refined += usize::from(res.stats.refined);
+                self.uncertified += res.stats.uncertified;
                 let line = format!(
                     "solved=1 ms={ms:.3} total_ms={:.3} search_ms={:.3} iterations={} nodes={} exact_fallbacks={} \
-                     raw_length={:.4} length={:.4} waypoints={} retreat_states={} refined={}",
+                     raw_length={:.4} length={:.4} waypoints={} retreat_states={} refined={} \
+                     uncertified={}",
                     total * 1e3,
                     res.stats.search_s * 1e3,
                     res.stats.iterations,
@@ -316,7 +324,8 @@ impl Tally {
                     res.stats.length_after,
                     res.path.len(),
                     res.stats.retreat_states,
-                    u8::from(res.stats.refined)
+                    u8::from(res.stats.refined),
+                    res.stats.uncertified
                 );
                 (line, Some(res.path))
             }
@@ -362,9 +371,10 @@ impl Tally {
              simplify_ms={simp:.3} validate_ms={val:.3} total_median_ms={total:.3} \
              median_iterations={median_iterations:.0} median_nodes={median_nodes:.0} \
              raw_length_median={raw_length:.3} length_median={length:.3} \
-             solved_sum_ms={:.3} refined={} {}{extra}",
+             solved_sum_ms={:.3} refined={} uncertified={} {}{extra}",
             self.solved_sum,
             self.refined,
+            self.uncertified,
             self.split.keys()
         )
     }

@@ -168,6 +168,10 @@ pub struct PlannerConfig {
     pub simplify: bool,
     /// The returned path's validation walks its edges this many times finer than the search.
     pub validation_refine: f64,
+    /// Certify returned paths clear between their validated states too (the engine's
+    /// `PlannerParams::certify`).
+    #[serde(default)]
+    pub certify: bool,
     pub use_map: bool,
     /// With `use_map`: space never observed inside this box (min and max corners, base frame,
     /// metres) is an obstacle; unset, unknown space is free.

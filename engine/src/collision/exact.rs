@@ -15,7 +15,7 @@
 
 use super::checker::Contact;
 use super::gjk::{extent_along, Convex, Placed};
-use super::parry::{convex_touch_along, exact_shape, shared_geometry, TOUCH};
+use super::parry::{convex_within_along, exact_shape, shared_geometry, TOUCH};
 use crate::robot::{Link, Robot};
 use crate::world::Environment;
 use crate::Pose;
@@ -256,6 +256,9 @@ pub struct ExactChecker<'a> {
     rest: &'a Rest,
     static_contact: Option<Contact>,
     checks: u64,
+    /// Per link, metres: a link within this of an object or the map, or two links within the
+    /// sum of theirs, count as touching ([`ExactChecker::set_margins`]); empty for none.
+    margins: Vec<f64>,
 }
 
 /// What the exact checker derives from the robot alone (built once per robot,
@@ -338,6 +341,7 @@ impl<'a> ExactChecker<'a> {
             rest,
             static_contact: None,
             checks: 0,
+            margins: Vec::new(),
         };
         sut.place_bounds(0..rest.poses.len());
         sut
@@ -358,6 +362,15 @@ impl<'a> ExactChecker<'a> {
     /// configuration.
     pub fn static_contact(&self) -> Option<&Contact> {
         self.static_contact.as_ref()
+    }
+
+    /// From now on, link `l` counts as touching an object or the map within `margins[l]`
+    /// metres of it, and two links within the sum of theirs (links past the slice's end: none);
+    /// an empty slice restores plain contact. Links that never move are decided once
+    /// ([`ExactChecker::static_contact`]), without a margin.
+    pub fn set_margins(&mut self, margins: &[f64]) {
+        self.margins.clear();
+        self.margins.extend(margins.iter().map(|m| m.max(0.0)));
     }
 
     /// Configurations checked so far.
@@ -436,11 +449,14 @@ impl<'a> ExactChecker<'a> {
         let n_objects = self.objects.len();
         let (object_axes, pair_axes) = axes.split_at_mut(model.part_count() * n_objects);
         let out2 = |obj: &ExactObject, c: &Vector3<f64>| box_gap2(|k| (obj.lo[k], obj.hi[k]), c);
+        let margin = |l: usize| self.margins.get(l).copied().unwrap_or(0.0);
         for &li in links {
+            let m = margin(li);
             // The objects the link's bounding sphere reaches (all past the 64th), which hold
             // every part's sphere (with a hair of slack).
             let near = model.link_bound(li).map_or(0, |(_, r)| {
-                self.boxes.near(&self.bounds[li], (r + 1e-6) * (r + 1e-6))
+                let reach = r + m + 1e-6;
+                self.boxes.near(&self.bounds[li], reach * reach)
             });
             if near == 0 && n_objects <= 64 && self.env.map().is_none() {
                 continue;
@@ -450,19 +466,20 @@ impl<'a> ExactChecker<'a> {
                 let pose = || self.poses[li] * part.origin;
                 let c = (self.poses[li] * Point3::from(part.center)).coords;
                 let axes = &mut object_axes[pi * n_objects..][..n_objects];
-                let r2 = part.radius * part.radius;
+                let r2 = (part.radius + m) * (part.radius + m);
                 for ((o, obj), axis) in self.objects.iter().enumerate().zip(axes) {
                     if (o < 64 && near & (1 << o) == 0) || out2(obj, &c) > r2 {
                         continue;
                     }
-                    if convex_touch_along(&part.convex, &pose(), &obj.convex, &obj.pose, axis) {
+                    let (convex, at) = (&obj.convex, &obj.pose);
+                    if convex_within_along(&part.convex, &pose(), convex, at, m, axis) {
                         return Some(Contact::Object {
                             link: names[li].name.clone(),
                             object: self.env.objects()[o].name.clone(),
                         });
                     }
                 }
-                if self.touches_map(part, pose, [c.x, c.y, c.z]) {
+                if self.touches_map(part, pose, [c.x, c.y, c.z], m) {
                     return Some(Contact::Object {
                         link: names[li].name.clone(),
                         object: "occupancy map".into(),
@@ -472,8 +489,9 @@ impl<'a> ExactChecker<'a> {
         }
         for &(a, b) in pairs {
             let (a_at, b_at) = ((a, self.bounds[a]), (b, self.bounds[b]));
-            if bounds_meet(model, a_at, b_at)
-                && parts_touch(model, &self.poses, a, b, Some(&mut *pair_axes))
+            let gap = margin(a) + margin(b);
+            if bounds_meet(model, a_at, b_at, gap)
+                && parts_touch(model, &self.poses, (a, b), gap, Some(&mut *pair_axes))
             {
                 return Some(Contact::SelfCollision {
                     link_a: names[a].name.clone(),
@@ -484,13 +502,21 @@ impl<'a> ExactChecker<'a> {
         None
     }
 
-    fn touches_map(&self, part: &ExactPart, pose: impl Fn() -> Pose, center: [f64; 3]) -> bool {
+    /// True when the part (its pose made by `pose`, its ball centred at `center`) comes
+    /// within `gap` of an occupied voxel's cube.
+    fn touches_map(
+        &self,
+        part: &ExactPart,
+        pose: impl Fn() -> Pose,
+        center: [f64; 3],
+        gap: f64,
+    ) -> bool {
         let Some(map) = self.env.map() else {
             return false;
         };
         // The clearance grid clears most parts in one read; the walk below finds the voxels
         // the part's ball holds itself (asking `sphere_collides` first walked them twice).
-        let r = part.radius;
+        let r = part.radius + gap;
         if map.clearance().is_some_and(|g| g.clear(center, r)) {
             return false;
         }
@@ -498,8 +524,8 @@ impl<'a> ExactChecker<'a> {
         let half = map.resolution() / 2.0;
         let voxel = Convex::Cuboid(Vector3::repeat(half));
         let aabb = part.shape.compute_aabb(&super::parry::to_parry_pose(pose));
-        let lo = [aabb.mins.x, aabb.mins.y, aabb.mins.z].map(|v| v as f64 - half);
-        let hi = [aabb.maxs.x, aabb.maxs.y, aabb.maxs.z].map(|v| v as f64 + half);
+        let lo = [aabb.mins.x, aabb.mins.y, aabb.mins.z].map(|v| v as f64 - half - gap);
+        let hi = [aabb.maxs.x, aabb.maxs.y, aabb.maxs.z].map(|v| v as f64 + half + gap);
         // A voxel farther from the part's bounding sphere than a hair (well above the
         // contact tolerance) cannot touch the part.
         let reach2 = (r + 1e-6) * (r + 1e-6);
@@ -515,12 +541,12 @@ impl<'a> ExactChecker<'a> {
             }
             if let Some((n, (least, most), e)) = &slab {
                 let t = n.x * v[0] + n.y * v[1] + n.z * v[2];
-                if least - (t + e) > TOUCH || (t - e) - most > TOUCH {
+                if least - (t + e) > TOUCH + gap || (t - e) - most > TOUCH + gap {
                     return false;
                 }
             }
             let at = Pose::translation(v[0], v[1], v[2]);
-            if convex_touch_along(&part.convex, pose, &voxel, &at, &mut axis) {
+            if convex_within_along(&part.convex, pose, &voxel, &at, gap, &mut axis) {
                 return true;
             }
             let len = axis.norm();
@@ -556,25 +582,28 @@ pub fn links_touch(model: &ExactModel, poses: &[Pose], a: usize, b: usize) -> bo
     };
     match (placed(a), placed(b)) {
         (Some(ba), Some(bb)) => {
-            bounds_meet(model, (a, ba), (b, bb)) && parts_touch(model, poses, a, b, None)
+            bounds_meet(model, (a, ba), (b, bb), 0.0)
+                && parts_touch(model, poses, (a, b), 0.0, None)
         }
         _ => false,
     }
 }
 
 /// True when the bounding spheres of links `a` and `b`, centred at `ba` and `bb` in the
-/// world, meet: most pairs are far apart. They hold every part's sphere, so (with a hair of
-/// slack for rounding) a pair they keep apart is one [`parts_touch`] would find apart too.
+/// world, come within `gap` of each other: most pairs are far apart. They hold every part's
+/// sphere, so (with a hair of slack for rounding) a pair they keep apart is one
+/// [`parts_touch`] would find apart too.
 #[inline]
 fn bounds_meet(
     model: &ExactModel,
     (a, ba): (usize, Vector3<f64>),
     (b, bb): (usize, Vector3<f64>),
+    gap: f64,
 ) -> bool {
     let (Some((_, ra)), Some((_, rb))) = (model.link_bound(a), model.link_bound(b)) else {
         return false;
     };
-    let reach = ra + rb + 1e-6;
+    let reach = ra + rb + gap + 1e-6;
     (ba - bb).norm_squared() <= reach * reach
 }
 
@@ -582,14 +611,14 @@ fn bounds_meet(
 /// places them per test).
 const PLACED_PARTS: usize = 32;
 
-/// True when a part of link `a` touches a part of link `b` (at link poses `poses`), part
-/// pairs screened by their bounding spheres; `axes`, when given, holds the part pairs' last
-/// separating directions (part-major, one row per part) to try first and update.
+/// True when a part of link `a` comes within `gap` of a part of link `b` (at link poses
+/// `poses`), part pairs screened by their bounding spheres; `axes`, when given, holds the part
+/// pairs' last separating directions (part-major, one row per part) to try first and update.
 fn parts_touch(
     model: &ExactModel,
     poses: &[Pose],
-    a: usize,
-    b: usize,
+    (a, b): (usize, usize),
+    gap: f64,
     mut axes: Option<&mut [Vector3<f64>]>,
 ) -> bool {
     let parts = model.part_count();
@@ -611,7 +640,7 @@ fn parts_touch(
                 true => centres_b[k],
                 false => poses[b] * Point3::from(pb.center),
             };
-            if (ca - cb).norm() > pa.radius + pb.radius {
+            if (ca - cb).norm() > pa.radius + pb.radius + gap {
                 continue;
             }
             let pose_a = pose_a.get_or_insert_with(|| poses[a] * pa.origin);
@@ -620,11 +649,12 @@ fn parts_touch(
                 Some(axes) => &mut axes[ia * parts + ib],
                 None => &mut fresh,
             };
-            if convex_touch_along(
+            if convex_within_along(
                 &pa.convex,
                 pose_a,
                 &pb.convex,
                 &(poses[b] * pb.origin),
+                gap,
                 axis,
             ) {
                 return true;

@@ -159,16 +159,18 @@ pub(crate) const TOUCH: f64 = 1e-9;
 /// True when two convex shapes at world poses touch or overlap.
 #[cfg(test)]
 pub(crate) fn convex_touch(a: &Convex, pose_a: &Pose, b: &Convex, pose_b: &Pose) -> bool {
-    convex_touch_along(a, pose_a, b, pose_b, &mut Vector3::zeros())
+    convex_within_along(a, pose_a, b, pose_b, 0.0, &mut Vector3::zeros())
 }
 
-/// [`convex_touch`], trying the separating `axis` of an earlier answer first and leaving
-/// this answer's (see [`gjk::separated_along`]).
-pub(crate) fn convex_touch_along(
+/// True when two convex shapes at world poses come within `gap` metres of each other (touch
+/// or overlap at 0), trying the separating `axis` of an earlier answer first and leaving this
+/// answer's (see [`gjk::separated_along`]).
+pub(crate) fn convex_within_along(
     a: &Convex,
     pose_a: &Pose,
     b: &Convex,
     pose_b: &Pose,
+    gap: f64,
     axis: &mut Vector3<f64>,
 ) -> bool {
     // A ball against anything but a hull: the distance from its centre, in closed form (a
@@ -180,8 +182,8 @@ pub(crate) fn convex_touch_along(
     };
     if let Some((r, ball_pose, other, other_pose)) = ball {
         let centre = other_pose.inverse_transform_point(&ball_pose.translation.vector.into());
-        if let Some(gap) = other.point_gap(&centre.coords) {
-            return gap - r <= TOUCH;
+        if let Some(d) = other.point_gap(&centre.coords) {
+            return d - r <= TOUCH + gap;
         }
     }
     let (a, b) = (
@@ -194,7 +196,7 @@ pub(crate) fn convex_touch_along(
             pose: pose_b,
         },
     );
-    !gjk::separated_along(&a, &b, TOUCH, axis)
+    !gjk::separated_along(&a, &b, TOUCH + gap, axis)
 }
 
 /// True when two parry shapes at world poses touch or overlap.

@@ -12,6 +12,7 @@
 //! pose goals, search and simplify on the sphere model, validate the path on the exact geometry
 //! (the states the sphere lanes cannot clear decided by the exact checker).
 
+pub mod certify;
 pub mod ik;
 pub mod nearest;
 mod retreat;
@@ -71,6 +72,9 @@ pub struct PlannerParams {
     /// (at least 1): a hand's corner moves centimetres between two states the resolution
     /// apart and can graze an object between them on the approach to a grasp (see [`plan`]).
     pub validation_refine: f64,
+    /// Certify the returned path between its validated states too: clear all the way, not
+    /// only at the states a resolution apart (see [`certify`]).
+    pub certify: bool,
     /// Wall-clock limit for the search.
     pub time_limit: Duration,
     /// Iteration limit for the search.
@@ -127,6 +131,7 @@ impl Default for PlannerParams {
             range: 1.0,
             resolution: DEFAULT_RESOLUTION,
             validation_refine: 1.0,
+            certify: false,
             time_limit: Duration::from_secs(10),
             max_iterations: 5_000_000,
             seed: 0,
@@ -265,6 +270,10 @@ pub struct PlanStats {
     /// The validation refused the path found at the planner's resolution and this one was
     /// searched again at the validation's, finer (see [`plan`]).
     pub refined: bool,
+    /// Segments of the returned path (and of the fallbacks validated before it) that
+    /// certification left uncertified, checked at 1/32 of its resolution instead (see
+    /// [`certify`]).
+    pub uncertified: u64,
 }
 
 impl PlanStats {
@@ -318,10 +327,17 @@ pub fn plan(
 ) -> Result<PlanResult, PlanError> {
     let t = Instant::now();
     match plan_once(robot, env, request, sampler) {
-        Err(PlanError::InvalidPath(_)) if request.params.validation_refine > 1.0 => {
-            // Searched and validated at the first validation's resolution.
+        Err(PlanError::InvalidPath(_))
+            if request.params.validation_refine > 1.0 || request.params.certify =>
+        {
+            // Searched and validated at the first validation's resolution (a certified one
+            // found a graze between the states: four times finer).
+            let refine = match request.params.validation_refine {
+                r if r > 1.0 => r,
+                _ => CERTIFIED_RESEARCH,
+            };
             let mut finer = request.clone();
-            finer.params.resolution /= request.params.validation_refine;
+            finer.params.resolution /= refine;
             finer.params.validation_refine = 1.0;
             finer.params.time_limit = finer.params.time_limit.saturating_sub(t.elapsed());
             let mut res = plan_once(robot, env, &finer, sampler)?;
@@ -331,6 +347,10 @@ pub fn plan(
         other => other,
     }
 }
+
+/// How much finer [`plan`] searches again when a certified validation found a graze between
+/// the states of both the simplified path and the search's own.
+const CERTIFIED_RESEARCH: f64 = 4.0;
 
 /// [`plan`] at the request's resolution.
 fn plan_once(
@@ -344,7 +364,8 @@ fn plan_once(
         timing.validate().map_err(PlanError::InvalidTiming)?;
     }
     let mut checker = Validity::new(robot, env, params.resolution, params.exact_radius)
-        .validating_at(params.resolution / params.validation_refine.max(1.0));
+        .validating_at(params.resolution / params.validation_refine.max(1.0))
+        .certifying(params.certify);
     let mut rng = PlannerRng::seed_from_u64(params.seed);
     let mut stats = PlanStats::default();
     robot
@@ -441,6 +462,7 @@ fn plan_once(
         }
     }
     stats.validate_s += t.elapsed().as_secs_f64();
+    stats.uncertified = checker.uncertified();
     if let Some(c) = verdict {
         return Err(PlanError::InvalidPath(c));
     }

@@ -9,6 +9,7 @@
 //! again of the exact checker. Everywhere else the sphere verdict stands, so the inner loop
 //! stays on the fast path.
 
+use super::certify::Certified;
 use super::exact_path_contact;
 use crate::collision::batch::BatchChecker;
 use crate::collision::checker::{bisect_motion, steps_over, CheckStats, Contact};
@@ -33,6 +34,8 @@ pub struct Validity<'a> {
     state: Vec<f64>,
     motions: u64,
     fallbacks: u64,
+    /// Certifies returned paths between their states ([`Validity::certifying`]).
+    certified: Option<Certified>,
 }
 
 impl<'a> Validity<'a> {
@@ -58,7 +61,21 @@ impl<'a> Validity<'a> {
             state: vec![0.0; robot.dof()],
             motions: 0,
             fallbacks: 0,
+            certified: None,
         }
+    }
+
+    /// Certifies returned paths between their states too ([`Validity::path_contact`]; see
+    /// [`certify`](super::certify)).
+    pub fn certifying(mut self, on: bool) -> Self {
+        self.certified = on.then(|| Certified::new(self.robot));
+        self
+    }
+
+    /// Segments of returned paths left uncertified so far, checked at 1/32 of the validation's
+    /// resolution instead (see [`certify`](super::certify)).
+    pub fn uncertified(&self) -> u64 {
+        self.certified.as_ref().map_or(0, Certified::uncertified)
     }
 
     /// Validates returned paths ([`Validity::path_contact`]) at `resolution` (by default
@@ -274,6 +291,9 @@ impl<'a> Validity<'a> {
     /// reach (the batch checker flags that possibility too). Only the states flagged go to
     /// the exact checker; an edge with a state it finds in contact is walked again in order
     /// by the exact checker, to name its first contact.
+    ///
+    /// When [`Validity::certifying`], a path found free so is then certified between those
+    /// states ([`certify`](super::certify)), and the first contact found there is returned.
     pub fn path_contact(&mut self, path: &[Vec<f64>]) -> Option<Contact> {
         let (robot, resolution) = (self.robot, self.validation_resolution);
         if let Some(c) = self.exact.static_contact() {
@@ -308,6 +328,9 @@ impl<'a> Validity<'a> {
             if !batch.motion_free(robot, resolution, (a, b), true, Some(decide)) {
                 found = exact.motion_contact(a, b, resolution).map(|(_, c)| c);
             }
+        }
+        if let (None, Some(certified)) = (&found, self.certified.as_mut()) {
+            found = certified.path_contact(robot, (&mut batch, exact), resolution, path);
         }
         batch.validate(false);
         self.state = state;

@@ -10,7 +10,8 @@
 //!   does when no SRDF says;
 //! - [`fk`]: forward kinematics;
 //! - [`spheres`]: the sphere model fitted to the collision geometry;
-//! - [`config_space`]: joint limits, wrapping, distances and interpolation.
+//! - [`config_space`]: joint limits, wrapping, distances and interpolation;
+//! - [`sweep`]: how far a motion can move each link's geometry.
 
 pub mod config_space;
 pub mod description;
@@ -21,6 +22,7 @@ pub mod primitives;
 pub mod self_collision;
 pub mod spheres;
 pub mod srdf;
+pub mod sweep;
 mod urdf;
 
 pub use config_space::ConfigError;

@@ -316,4 +316,32 @@ fn a_finer_validation_finds_a_graze_between_checked_states() {
     let mut fine = Validity::new(&robot, &grain, DEFAULT_RESOLUTION, 0.0)
         .validating_at(DEFAULT_RESOLUTION / 8.0);
     assert!(fine.path_contact(&path).is_some(), "walked finer");
+    let mut certified = Validity::new(&robot, &grain, DEFAULT_RESOLUTION, 0.0).certifying(true);
+    assert!(certified.path_contact(&path).is_some(), "certified");
+    // Moved a few centimetres off the path (where a walk 256 times finer finds it clear),
+    // the grain leaves the motion certified.
+    let far = [
+        [0.0, 0.0, 0.05],
+        [0.0, 0.0, -0.05],
+        [0.05, 0.0, 0.0],
+        [-0.05, 0.0, 0.0],
+    ]
+    .into_iter()
+    .map(|[x, y, z]| {
+        Environment::from_objects(grain.objects().iter().map(|o| Object {
+            pose: Pose::translation(x, y, z) * o.pose,
+            ..o.clone()
+        }))
+        .unwrap()
+    })
+    .find(|env| {
+        let mut exact = ExactChecker::new(&robot, env);
+        exact
+            .motion_contact(&a, &b, DEFAULT_RESOLUTION / 256.0)
+            .is_none()
+    })
+    .expect("a grain clear of the motion");
+    let mut certified = Validity::new(&robot, &far, DEFAULT_RESOLUTION, 0.0).certifying(true);
+    assert_eq!(certified.path_contact(&path), None, "certified clear");
+    assert_eq!(certified.uncertified(), 0);
 }

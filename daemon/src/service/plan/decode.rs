@@ -154,6 +154,7 @@ pub fn decode(
                 range: config.planner.range,
                 simplify: config.planner.simplify,
                 validation_refine: config.planner.validation_refine,
+                certify: config.planner.certify,
                 timing,
                 ..Default::default()
             },

@@ -172,7 +172,20 @@ pub struct BatchChecker {
     /// The lanes that hold distinct states: all of them, but the first alone while one state
     /// fills every lane (the map's voxels are then walked once, not eight times).
     live: u32,
+    /// The radii as built, while [`BatchChecker::inflate`] has grown them.
+    uninflated: Option<Box<Radii>>,
     avx2: bool,
+}
+
+/// The batch checker's radii: per link its bound ball and box, per cluster and sphere its
+/// radius, and the self pairs' reaches.
+#[derive(Clone)]
+struct Radii {
+    bound: Vec<Option<([f32; 3], f32)>>,
+    bound_box: Vec<Option<([f32; 3], [f32; 3])>>,
+    cluster: Vec<f32>,
+    sphere: Vec<f32>,
+    pairs: Vec<SelfPair>,
 }
 
 impl BatchChecker {
@@ -327,6 +340,7 @@ impl BatchChecker {
             remembered: 0,
             live: ALL_LANES,
             skip_recent: false,
+            uninflated: None,
             lanes: vec![F8::default(); robot.dof()],
             start: vec![0.0; robot.dof()],
             delta: vec![0.0; robot.dof()],
@@ -465,6 +479,61 @@ impl BatchChecker {
         let hit = self.state_may_collide(q);
         std::mem::swap(&mut self.sphere, &mut self.sphere_inner);
         hit
+    }
+
+    /// Grows every ball of each link `l` by `by[l]` metres (links beyond `by` not at all),
+    /// and its bound box likewise, from the radii as built: the checks then find a state in
+    /// contact wherever a link comes within `by[l]` of an object or the map, and two links
+    /// within the sum of theirs of each other. [`BatchChecker::deflate`] undoes it. Links that
+    /// never move are placed once, so they are not grown.
+    pub fn inflate(&mut self, by: &[f32]) {
+        let base = self.uninflated.get_or_insert_with(|| {
+            Box::new(Radii {
+                bound: self.bound.clone(),
+                bound_box: self.bound_box.clone(),
+                cluster: self.cluster.iter().map(|c| c.1).collect(),
+                sphere: self.sphere.iter().map(|s| s.1).collect(),
+                pairs: self.pairs.clone(),
+            })
+        });
+        let grow = |l: usize| by.get(l).copied().unwrap_or(0.0).max(0.0);
+        for &l in &self.moving {
+            let m = grow(l);
+            if let (Some(b), Some(base)) = (&mut self.bound[l], base.bound[l]) {
+                b.1 = base.1 + m;
+            }
+            if let (Some(b), Some((lo, hi))) = (&mut self.bound_box[l], base.bound_box[l]) {
+                *b = (lo.map(|v| v - m), hi.map(|v| v + m));
+            }
+            for ci in self.link_clusters[l].clone() {
+                self.cluster[ci].1 = base.cluster[ci] + m;
+                for s in self.cluster[ci].2.clone() {
+                    self.sphere[s].1 = base.sphere[s] + m;
+                }
+            }
+        }
+        for (pair, base) in self.pairs.iter_mut().zip(&base.pairs) {
+            pair.ra = base.ra + grow(pair.a);
+            pair.rb = base.rb + grow(pair.b);
+            let r = pair.ra + pair.rb;
+            pair.reach2 = r * r;
+        }
+    }
+
+    /// The radii as built again, after [`BatchChecker::inflate`].
+    pub fn deflate(&mut self) {
+        let Some(base) = self.uninflated.as_deref() else {
+            return;
+        };
+        self.bound.clone_from(&base.bound);
+        self.bound_box.clone_from(&base.bound_box);
+        for (c, r) in self.cluster.iter_mut().zip(&base.cluster) {
+            c.1 = *r;
+        }
+        for (s, r) in self.sphere.iter_mut().zip(&base.sphere) {
+            s.1 = *r;
+        }
+        self.pairs.clone_from(&base.pairs);
     }
 
     /// `check` with the first lane marked as the only distinct one.
