@@ -617,6 +617,7 @@ fn bad_config_key_is_named() {
         ("[limits]\npublishers = 0\n", "limits.publishers"),
         ("[planner]\nworkers = 1000\n", "planner.workers"),
         ("[planner]\nvalidation_refine = 0.5\n", "planner.validation_refine"),
+        ("[planner]\ncertify = 1\n", "certify"),
         ("file_mode = \"0666\"\n", "file_mode"),
         ("[ingest]\nspin_us = 5000000\n", "ingest.spin_us"),
         ("file_mode = \"rw-------\"\n", "file_mode"),
