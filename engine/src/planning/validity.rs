@@ -66,7 +66,9 @@ impl<'a> Validity<'a> {
     }
 
     /// Certifies returned paths between their states too ([`Validity::path_contact`]; see
-    /// [`certify`](super::certify)).
+    /// [`certify`](super::certify)). It works in the sphere lanes: a robot they cannot stand
+    /// for (a link with exact geometry but no spheres, where validation walks the exact
+    /// geometry alone) is validated without it.
     pub fn certifying(mut self, on: bool) -> Self {
         self.certified = on.then(|| Certified::new(self.robot));
         self
