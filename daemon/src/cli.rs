@@ -190,6 +190,9 @@ pub struct DemoArgs {
     /// Instance name of the demo's daemon (what `ember monitor` shows).
     #[arg(long, default_value = "demo")]
     pub instance: String,
+    /// Have the daemon certify every returned path between its states (`planner.certify`).
+    #[arg(long)]
+    pub certify: bool,
 }
 
 #[derive(Debug, Args)]

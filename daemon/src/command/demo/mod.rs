@@ -76,6 +76,10 @@ impl DemoDaemon {
         if let Some(h) = spec.hand_protrusion {
             table.insert("sphere_protrusion_hand".into(), h.into());
         }
+        if args.certify {
+            let planner = toml::Table::from_iter([("certify".to_string(), true.into())]);
+            table.insert("planner".into(), planner.into());
+        }
         std::fs::write(&config, toml::to_string(&table)?)?;
         let mut cmd = Command::new(std::env::current_exe()?);
         cmd.args(["run", "--instance", &args.instance, "--config"])
