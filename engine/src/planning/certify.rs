@@ -235,6 +235,7 @@ mod tests {
     use crate::collision::exact::ExactChecker;
     use crate::collision::Shape;
     use crate::planning::exact_path_contact;
+    use crate::planning::validity::tests::extend_randomly;
     use crate::planning::validity::Validity;
     use crate::robot::Robot;
     use crate::world::{Environment, Object};
@@ -280,16 +281,7 @@ mod tests {
                     if !free_start {
                         break;
                     }
-                    for _ in 0..2 {
-                        let (mut target, mut next, mut step) =
-                            (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-                        robot.sample_uniform(&mut rng, &mut target);
-                        let last = path.last().unwrap();
-                        let d = robot.distance(last, &target);
-                        let t = rng.random_range(0.1..0.4f64).min(d) / d;
-                        robot.step_towards(last, &target, t, &mut next, &mut step);
-                        path.push(next);
-                    }
+                    extend_randomly(&robot, &mut rng, &mut path, 0.4);
                     // A 1 mm grain on a part of the hand, halfway between two states.
                     let mut objects = scene.objects().to_vec();
                     if rng.random_bool(0.7) {

@@ -373,7 +373,7 @@ impl<'a> ConfigCheck<'a> for Validity<'a> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::collision::Shape;
     use crate::robot::spheres::fit::Part;
@@ -382,6 +382,26 @@ mod tests {
     use crate::Pose;
     use nalgebra::Point3;
     use rand::{Rng, SeedableRng};
+
+    /// Adds two waypoints to `path`, each a random step of 0.1 to `longest` (configuration
+    /// space) from the last, towards a uniform sample.
+    pub(crate) fn extend_randomly(
+        robot: &Robot,
+        rng: &mut impl Rng,
+        path: &mut Vec<Vec<f64>>,
+        longest: f64,
+    ) {
+        let n = robot.dof();
+        for _ in 0..2 {
+            let (mut target, mut next, mut step) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+            robot.sample_uniform(rng, &mut target);
+            let last = path.last().unwrap();
+            let d = robot.distance(last, &target);
+            let t = rng.random_range(0.1..longest).min(d) / d;
+            robot.step_towards(last, &target, t, &mut next, &mut step);
+            path.push(next);
+        }
+    }
 
     /// The validation of a path answers as the exact checker walking it does, the same
     /// contact named, on Fetch and the Panda among boxes small enough to fit inside a link,
@@ -419,16 +439,7 @@ mod tests {
                     // Three waypoints, each a short step from the last.
                     let mut path = vec![vec![0.0; n]];
                     robot.sample_uniform(&mut rng, &mut path[0]);
-                    for _ in 0..2 {
-                        let (mut target, mut next, mut step) =
-                            (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-                        robot.sample_uniform(&mut rng, &mut target);
-                        let last = path.last().unwrap();
-                        let d = robot.distance(last, &target);
-                        let t = rng.random_range(0.1..0.6f64).min(d) / d;
-                        robot.step_towards(last, &target, t, &mut next, &mut step);
-                        path.push(next);
-                    }
+                    extend_randomly(&robot, &mut rng, &mut path, 0.6);
                     let want = exact_path_contact(&mut exact, &path, resolution);
                     assert_eq!(sut.path_contact(&path), want, "{name}: {path:?}");
                     for q in &path {
