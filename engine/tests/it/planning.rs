@@ -265,28 +265,27 @@ fn a_set_cancel_flag_stops_the_search() {
     }
 }
 
-/// A grain that a finger sweeps through between two states the search's resolution apart:
-/// the validation at that resolution passes the motion; eight times finer (`validating_at`)
-/// it finds the grain.
-#[test]
-fn a_finer_validation_finds_a_graze_between_checked_states() {
+/// A 1 mm grain where Fetch's left finger is halfway between two states of the motion
+/// `a` → `b` the search's resolution apart, both of them clear of it: the first such place
+/// from `a`, or from `b` when `near_end`.
+fn grain_between_states(robot: &Robot, a: &[f64], b: &[f64], near_end: bool) -> Environment {
     use ember_engine::collision::exact::ExactChecker;
     use ember_engine::collision::Shape;
-    use ember_engine::planning::validity::Validity;
     use ember_engine::world::Object;
-    let robot = Robot::builtin("fetch").unwrap();
-    let a = vec![0.2, 0.5, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0];
-    let mut b = a.clone();
-    b[1] += 0.5;
-    let n = (robot.distance(&a, &b) / DEFAULT_RESOLUTION).ceil() as usize;
+    let n = (robot.distance(a, b) / DEFAULT_RESOLUTION).ceil() as usize;
     let finger = robot.link_index("l_gripper_finger_link").unwrap();
     let state = |t: f64| {
         let mut q = vec![0.0; a.len()];
-        robot.interpolate(&a, &b, t, &mut q);
+        robot.interpolate(a, b, t, &mut q);
         q
     };
-    // Where a finger is halfway between two checked states, with both of them clear of it.
-    let grain = (1..n - 1)
+    let places: Vec<usize> = match near_end {
+        false => (1..n - 1).collect(),
+        true => (1..n).rev().collect(),
+    };
+    let places_again = places.clone();
+    places
+        .into_iter()
         .map(|k| {
             // The centre of the finger's collision shape.
             let at = robot
@@ -301,15 +300,31 @@ fn a_finer_validation_finds_a_graze_between_checked_states() {
             }])
             .unwrap()
         })
-        .enumerate()
-        .find(|(k, env)| {
-            let mut exact = ExactChecker::new(&robot, env);
-            let (k, n) = (*k + 1, n as f64);
-            exact.motion_contact(&a, &b, DEFAULT_RESOLUTION).is_none()
-                && exact.contact(&state((k as f64 + 0.5) / n)).is_some()
+        .zip(places_again)
+        .find(|(env, k)| {
+            let mut exact = ExactChecker::new(robot, env);
+            exact.motion_contact(a, b, DEFAULT_RESOLUTION).is_none()
+                && exact
+                    .contact(&state((*k as f64 + 0.5) / n as f64))
+                    .is_some()
         })
-        .map(|(_, env)| env)
-        .expect("a grain between two checked states");
+        .map(|(env, _)| env)
+        .expect("a grain between two checked states")
+}
+
+/// A grain that a finger sweeps through between two states the search's resolution apart:
+/// the validation at that resolution passes the motion; eight times finer (`validating_at`)
+/// or certified it finds the grain.
+#[test]
+fn a_finer_validation_finds_a_graze_between_checked_states() {
+    use ember_engine::collision::exact::ExactChecker;
+    use ember_engine::planning::validity::Validity;
+    use ember_engine::world::Object;
+    let robot = Robot::builtin("fetch").unwrap();
+    let a = vec![0.2, 0.5, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0];
+    let mut b = a.clone();
+    b[1] += 0.5;
+    let grain = grain_between_states(&robot, &a, &b, false);
     let path = [a.clone(), b.clone()];
     let mut coarse = Validity::new(&robot, &grain, DEFAULT_RESOLUTION, 0.0);
     assert_eq!(coarse.path_contact(&path), None, "between the states");
@@ -344,4 +359,37 @@ fn a_finer_validation_finds_a_graze_between_checked_states() {
     let mut certified = Validity::new(&robot, &far, DEFAULT_RESOLUTION, 0.0).certifying(true);
     assert_eq!(certified.path_contact(&path), None, "certified clear");
     assert_eq!(certified.uncertified(), 0);
+}
+
+/// A plan whose path grazes a grain between the search's states: returned as it is by
+/// default; with `certify` the graze is found, the paths are refused, and the plan is searched
+/// again finer (`refined`) for a path certified clear.
+#[test]
+fn a_certified_plan_searches_again_past_a_graze() {
+    use ember_engine::planning::validity::Validity;
+    let robot = Robot::builtin("fetch").unwrap();
+    let a = vec![0.2, 0.5, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0];
+    let mut b = a.clone();
+    b[1] += 0.5;
+    // Next to the goal, where the exact geometry decides (the finger's spheres touch the
+    // grain there), so the search takes the motion.
+    let grain = grain_between_states(&robot, &a, &b, true);
+    let request = |certify| PlanRequest {
+        start: a.clone(),
+        goal: Goal::Joints(vec![b.clone()]),
+        params: PlannerParams {
+            certify,
+            ..Default::default()
+        },
+    };
+    let mut check = Validity::new(&robot, &grain, DEFAULT_RESOLUTION, 0.0).certifying(true);
+    let plain = planning::plan(&robot, &grain, &request(false), &mut UniformSampler).unwrap();
+    assert!(!plain.stats.refined);
+    assert!(
+        check.path_contact(&plain.path).is_some(),
+        "no graze to find"
+    );
+    let res = planning::plan(&robot, &grain, &request(true), &mut UniformSampler).unwrap();
+    assert!(res.stats.refined, "not searched again");
+    assert_eq!(check.path_contact(&res.path), None);
 }
