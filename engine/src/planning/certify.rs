@@ -165,7 +165,8 @@ impl Certified {
                     self.next.push((mid, k1));
                     continue;
                 }
-                // As far as it is halved: its states checked as a discrete walk would.
+                // As far as it is halved (the last level: the checkers stay plain for the
+                // rest of it): its states checked as a discrete walk would.
                 batch.deflate();
                 exact.set_margins(&[]);
                 for k in [k0, k1] {
@@ -182,8 +183,6 @@ impl Certified {
                     self.known.entry(k).or_default().free = true;
                 }
                 self.uncertified += 1;
-                batch.inflate(&self.margins32);
-                exact.set_margins(&self.margins);
             }
             std::mem::swap(&mut self.segments, &mut self.next);
         }

@@ -265,6 +265,14 @@ fn a_set_cancel_flag_stops_the_search() {
     }
 }
 
+/// Fetch and a motion raising its shoulder by 0.5 rad, the hand held out in front.
+fn shoulder_lift_motion() -> (Robot, Vec<f64>, Vec<f64>) {
+    let a = vec![0.2, 0.5, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0];
+    let mut b = a.clone();
+    b[1] += 0.5;
+    (Robot::builtin("fetch").unwrap(), a, b)
+}
+
 /// A 1 mm grain where Fetch's left finger is halfway between two states of the motion
 /// `a` → `b` the search's resolution apart, both of them clear of it: the first such place
 /// from `a`, or from `b` when `near_end`.
@@ -320,10 +328,7 @@ fn a_finer_validation_finds_a_graze_between_checked_states() {
     use ember_engine::collision::exact::ExactChecker;
     use ember_engine::planning::validity::Validity;
     use ember_engine::world::Object;
-    let robot = Robot::builtin("fetch").unwrap();
-    let a = vec![0.2, 0.5, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0];
-    let mut b = a.clone();
-    b[1] += 0.5;
+    let (robot, a, b) = shoulder_lift_motion();
     let grain = grain_between_states(&robot, &a, &b, false);
     let path = [a.clone(), b.clone()];
     let mut coarse = Validity::new(&robot, &grain, DEFAULT_RESOLUTION, 0.0);
@@ -367,10 +372,7 @@ fn a_finer_validation_finds_a_graze_between_checked_states() {
 #[test]
 fn a_certified_plan_searches_again_past_a_graze() {
     use ember_engine::planning::validity::Validity;
-    let robot = Robot::builtin("fetch").unwrap();
-    let a = vec![0.2, 0.5, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0];
-    let mut b = a.clone();
-    b[1] += 0.5;
+    let (robot, a, b) = shoulder_lift_motion();
     // Next to the goal, where the exact geometry decides (the finger's spheres touch the
     // grain there), so the search takes the motion.
     let grain = grain_between_states(&robot, &a, &b, true);
