@@ -1,20 +1,21 @@
 //! Certified motions: a returned path clear between its checked states, not only at them.
 //!
 //! A discrete walk checks a motion's states a resolution apart, and a hand's corner moves
-//! centimetres between two of them: it can graze an object there unseen. The
-//! robot's [`Sweep`] bounds how far any point of each link moves along a motion, so a motion
-//! between two states is clear all the way when, at each end, every link `l` is clear of the
-//! objects and the map by half its bound `M_l`, and each pair of links by half the sum of
-//! theirs: a point would have to cover its clearance at one end and at the other within `M_l`.
-//! Each edge's states (at the validation's resolution) are checked so, the links grown by
-//! those margins: eight states at a time in the sphere lanes first, alone where a batch is
-//! flagged, then on the exact geometry with the margins. A segment whose ends are not both
-//! clear is halved, and its halves, each moving half as far, asked again with half the
-//! margins, down to [`DEPTH`] halvings (segments 32 times shorter); there its states are
-//! checked without a margin, as a discrete walk would check them, and a contact found
-//! between the validation's states is returned. Only what is left at that depth (a state
-//! closer than a hair to something, where a motion could also just touch it) is not
-//! certified; [`Certified::uncertified`] counts those segments.
+//! centimetres between two of them: it can graze an object there unseen. Between two states
+//! the robot's [`Sweep`] bounds how far any point of each link strays from where it is at the
+//! nearer of the two (from their poses: the chord its bound ball's centre moves, its turn and
+//! the chord's bend, [`Sweep::half_motion`]). So a motion between two states is clear all the
+//! way when, at each end, every link `l` is clear of the objects and the map by that bound
+//! `m_l`, and each pair of links by the sum of theirs. Each edge's states (at the validation's
+//! resolution) are checked so, the links grown by those margins (a state's the larger of its
+//! two segments'): eight states at a time in the sphere lanes first (grown by the eight
+//! states' largest), alone where a batch is flagged, then on the exact geometry with the
+//! state's own margins. A segment whose ends are not both clear is halved, and its halves
+//! asked again with their own (smaller) margins, down to [`DEPTH`] halvings (segments 32
+//! times shorter); there its states are checked without a margin, as a discrete walk would
+//! check them, and a contact found between the validation's states is returned. Only what is
+//! left at that depth (a state closer than a hair to something, where a motion could also
+//! just touch it) is not certified; [`Certified::uncertified`] counts those segments.
 
 use crate::collision::batch::lanes::{F8, LANES};
 use crate::collision::batch::BatchChecker;
@@ -22,6 +23,7 @@ use crate::collision::checker::{steps_over, Contact};
 use crate::collision::exact::ExactChecker;
 use crate::robot::sweep::Sweep;
 use crate::robot::Robot;
+use crate::Pose;
 use rustc_hash::FxHashMap;
 
 /// Halvings of a segment before its states are only checked (the finest segments are
@@ -29,27 +31,38 @@ use rustc_hash::FxHashMap;
 pub const DEPTH: u32 = 5;
 
 /// What each state of an edge is known to be, by its place on the finest grid.
-#[derive(Clone, Copy, Default)]
+#[derive(Clone, Copy)]
 struct Known {
-    /// The coarsest level at which it is clear by that level's margins (clear at a level's
-    /// margins is clear at every finer level's).
+    /// The coarsest level at which it is clear by that level's margins (a state's margins
+    /// shrink from level to level, so clear at one level is clear at every finer one).
     clear_at: Option<u32>,
     /// Free without a margin.
     free: bool,
+    /// Where its links' bound-ball centres are kept (in links, in `Certified::centres`).
+    slot: usize,
 }
 
 /// The certification's working state for one robot (kept by the validity checks).
 pub(crate) struct Certified {
     sweep: Sweep,
+    links: usize,
     delta: Vec<f64>,
-    /// Per link: how far the edge being certified moves it at most.
-    motion: Vec<f64>,
-    margins: Vec<f64>,
-    margins32: Vec<f32>,
+    /// A segment's differences at the current level.
+    step: Vec<f64>,
+    /// A segment's margins (one per link).
+    half: Vec<f64>,
+    poses: Vec<Pose>,
     known: FxHashMap<u64, Known>,
+    /// Per known state, per link: its bound ball's centre ([`Sweep::centres`]).
+    centres: Vec<[f64; 3]>,
     segments: Vec<(u64, u64)>,
     next: Vec<(u64, u64)>,
-    asked: Vec<u64>,
+    /// The states asked at the current level, with where their margins are in `margins`.
+    asked: Vec<(u64, usize)>,
+    slots: FxHashMap<u64, usize>,
+    /// Per asked state, per link: the margin it must be clear by.
+    margins: Vec<f64>,
+    margins32: Vec<f32>,
     q: Vec<f64>,
     lanes: Vec<F8>,
     uncertified: u64,
@@ -60,14 +73,19 @@ impl Certified {
         let (n, links) = (robot.dof(), robot.links().len());
         Certified {
             sweep: Sweep::new(robot),
+            links,
             delta: vec![0.0; n],
-            motion: vec![0.0; links],
-            margins: vec![0.0; links],
-            margins32: vec![0.0; links],
+            step: vec![0.0; n],
+            half: vec![0.0; links],
+            poses: vec![Pose::identity(); links],
             known: FxHashMap::default(),
+            centres: Vec::new(),
             segments: Vec::new(),
             next: Vec::new(),
             asked: Vec::new(),
+            slots: FxHashMap::default(),
+            margins: Vec::new(),
+            margins32: vec![0.0; links],
             q: vec![0.0; n],
             lanes: vec![F8::splat(0.0); n],
             uncertified: 0,
@@ -107,50 +125,23 @@ impl Certified {
     ) -> Option<Contact> {
         let (a, b) = (&edge[0][..], &edge[1][..]);
         let n = steps_over(robot.deltas(a, b, &mut self.delta), resolution).max(1) as u64;
-        self.sweep.link_motion(&self.delta, &mut self.motion);
         let unit = 1u64 << DEPTH;
         let finest = n * unit;
         self.known.clear();
+        self.centres.clear();
         self.segments.clear();
         for k in 0..n {
             self.segments.push((k * unit, (k + 1) * unit));
         }
         // The validation's own states were found free.
         for k in 0..=n {
-            let free = Known {
-                clear_at: None,
-                free: true,
-            };
-            self.known.insert(k * unit, free);
+            self.know(robot, (a, b), finest, k * unit).free = true;
         }
         for level in 0..=DEPTH {
             if self.segments.is_empty() {
                 break;
             }
-            // A segment here covers 1 / (n · 2^level) of the edge: its ends must be clear by
-            // half of what it moves each link.
-            let share = 0.5 / (n << level) as f64;
-            for (m, (m32, d)) in self
-                .margins
-                .iter_mut()
-                .zip(self.margins32.iter_mut().zip(&self.motion))
-            {
-                *m = d * share;
-                *m32 = *m as f32;
-            }
-            batch.inflate(&self.margins32);
-            exact.set_margins(&self.margins);
-            self.asked.clear();
-            for &(k0, k1) in &self.segments {
-                for k in [k0, k1] {
-                    let known = self.known.entry(k).or_default();
-                    if known.clear_at.is_none_or(|at| at > level) {
-                        self.asked.push(k);
-                    }
-                }
-            }
-            self.asked.sort_unstable();
-            self.asked.dedup();
+            self.margins_at(robot, (a, b), finest, n << level, level);
             self.clear_states(robot, (&mut *batch, &mut *exact), (a, b), finest, level);
             self.next.clear();
             for i in 0..self.segments.len() {
@@ -173,14 +164,13 @@ impl Certified {
                     if self.known[&k].free {
                         continue;
                     }
-                    let t = k as f64 / finest as f64;
-                    robot.interpolate(a, b, t, &mut self.q);
+                    robot.interpolate(a, b, k as f64 / finest as f64, &mut self.q);
                     if batch.state_may_collide(&self.q) {
                         if let Some(c) = exact.contact(&self.q) {
                             return Some(c);
                         }
                     }
-                    self.known.entry(k).or_default().free = true;
+                    self.known.get_mut(&k).expect("known").free = true;
                 }
                 self.uncertified += 1;
             }
@@ -189,9 +179,71 @@ impl Certified {
         None
     }
 
+    /// The state `k` (on the finest grid of `finest` steps from `a` to `b`), its links'
+    /// centres computed on first sight.
+    fn know(&mut self, robot: &Robot, (a, b): (&[f64], &[f64]), finest: u64, k: u64) -> &mut Known {
+        let (links, centres) = (self.links, &mut self.centres);
+        self.known.entry(k).or_insert_with(|| {
+            robot.interpolate(a, b, k as f64 / finest as f64, &mut self.q);
+            robot.forward_kinematics(&self.q, &mut self.poses);
+            let slot = centres.len() / links;
+            centres.resize(centres.len() + links, [0.0; 3]);
+            self.sweep
+                .centres(&self.poses, &mut centres[slot * links..]);
+            Known {
+                clear_at: None,
+                free: false,
+                slot,
+            }
+        })
+    }
+
+    /// Gathers the states the current segments (each `1 / parts` of the edge) need clear at
+    /// `level` and not yet known so, each with its margins: per link, the larger of its
+    /// segments' [`Sweep::half_motion`].
+    fn margins_at(
+        &mut self,
+        robot: &Robot,
+        (a, b): (&[f64], &[f64]),
+        finest: u64,
+        parts: u64,
+        level: u32,
+    ) {
+        let links = self.links;
+        for (s, d) in self.step.iter_mut().zip(&self.delta) {
+            *s = d / parts as f64;
+        }
+        self.asked.clear();
+        self.slots.clear();
+        self.margins.clear();
+        for i in 0..self.segments.len() {
+            let (k0, k1) = self.segments[i];
+            let ends = [k0, k1].map(|k| self.know(robot, (a, b), finest, k).slot);
+            let c = |slot: usize| &self.centres[slot * links..(slot + 1) * links];
+            self.sweep
+                .half_motion(&self.step, (c(ends[0]), c(ends[1])), &mut self.half);
+            for k in [k0, k1] {
+                if self.known[&k].clear_at.is_some_and(|at| at <= level) {
+                    continue;
+                }
+                let slot = *self.slots.entry(k).or_insert_with(|| {
+                    self.asked.push((k, self.margins.len() / links));
+                    self.margins.resize(self.margins.len() + links, 0.0);
+                    self.margins.len() / links - 1
+                });
+                let m = &mut self.margins[slot * links..(slot + 1) * links];
+                for (m, h) in m.iter_mut().zip(&self.half) {
+                    *m = m.max(*h);
+                }
+            }
+        }
+        self.asked.sort_unstable();
+    }
+
     /// Decides the states `self.asked` (places on the finest grid of `finest` steps from `a`
-    /// to `b`) at the margins set for `level`: eight at a time in the lanes, a flagged batch's
-    /// states alone, and those the lanes still flag on the exact geometry.
+    /// to `b`) at their margins: eight at a time in the lanes (grown by the eight's largest),
+    /// a flagged batch's states alone, and those the lanes still flag on the exact geometry
+    /// with their own.
     fn clear_states(
         &mut self,
         robot: &Robot,
@@ -200,8 +252,10 @@ impl Certified {
         finest: u64,
         level: u32,
     ) {
+        let links = self.links;
         for chunk in self.asked.chunks(LANES) {
-            for (i, &k) in chunk
+            self.margins32.fill(0.0);
+            for (i, &(k, slot)) in chunk
                 .iter()
                 .chain(std::iter::repeat(chunk.last().unwrap()))
                 .take(LANES)
@@ -211,15 +265,23 @@ impl Certified {
                 for (lane, &v) in self.lanes.iter_mut().zip(&self.q) {
                     lane.0[i] = v as f32;
                 }
+                let m = &self.margins[slot * links..(slot + 1) * links];
+                for (m32, &m) in self.margins32.iter_mut().zip(m) {
+                    *m32 = m32.max(m as f32);
+                }
             }
+            batch.inflate(&self.margins32);
             let batch_clear = !batch.may_collide(&self.lanes);
-            for &k in chunk {
+            for &(k, slot) in chunk {
                 let clear = batch_clear || {
                     robot.interpolate(a, b, k as f64 / finest as f64, &mut self.q);
-                    !batch.state_may_collide(&self.q) || exact.is_valid(&self.q)
+                    !batch.state_may_collide(&self.q) || {
+                        exact.set_margins(&self.margins[slot * links..(slot + 1) * links]);
+                        exact.is_valid(&self.q)
+                    }
                 };
                 if clear {
-                    let known = self.known.entry(k).or_default();
+                    let known = self.known.get_mut(&k).expect("known");
                     known.clear_at = Some(level);
                     known.free = true;
                 }
