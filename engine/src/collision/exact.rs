@@ -259,6 +259,8 @@ pub struct ExactChecker<'a> {
     /// Per link, metres: a link within this of an object or the map, or two links within the
     /// sum of theirs, count as touching ([`ExactChecker::set_margins`]); empty for none.
     margins: Vec<f64>,
+    /// Per pair of links (`links × links`), at most this of the sum; empty for no cap.
+    pair_margins: Vec<f64>,
 }
 
 /// What the exact checker derives from the robot alone (built once per robot,
@@ -342,6 +344,7 @@ impl<'a> ExactChecker<'a> {
             static_contact: None,
             checks: 0,
             margins: Vec::new(),
+            pair_margins: Vec::new(),
         };
         sut.place_bounds(0..rest.poses.len());
         sut
@@ -365,12 +368,15 @@ impl<'a> ExactChecker<'a> {
     }
 
     /// From now on, link `l` counts as touching an object or the map within `margins[l]`
-    /// metres of it, and two links within the sum of theirs (links past the slice's end: none);
-    /// an empty slice restores plain contact. Links that never move are decided once
+    /// metres of it (links past the slice's end: none), and links `a` and `b` each other
+    /// within the sum of theirs or `pairs[a * links + b]`, whichever is less (`pairs` empty:
+    /// the sum); empty slices restore plain contact. Links that never move are decided once
     /// ([`ExactChecker::static_contact`]), without a margin.
-    pub fn set_margins(&mut self, margins: &[f64]) {
+    pub fn set_margins(&mut self, margins: &[f64], pairs: &[f64]) {
         self.margins.clear();
         self.margins.extend(margins.iter().map(|m| m.max(0.0)));
+        self.pair_margins.clear();
+        self.pair_margins.extend(pairs.iter().map(|m| m.max(0.0)));
     }
 
     /// Configurations checked so far.
@@ -489,7 +495,13 @@ impl<'a> ExactChecker<'a> {
         }
         for &(a, b) in pairs {
             let (a_at, b_at) = ((a, self.bounds[a]), (b, self.bounds[b]));
-            let gap = margin(a) + margin(b);
+            let links = names.len();
+            let gap = (margin(a) + margin(b)).min(
+                self.pair_margins
+                    .get(a * links + b)
+                    .copied()
+                    .unwrap_or(f64::INFINITY),
+            );
             if bounds_meet(model, a_at, b_at, gap)
                 && parts_touch(model, &self.poses, (a, b), gap, Some(&mut *pair_axes))
             {

@@ -6,7 +6,10 @@
 //! nearer of the two (from their poses: the chord its bound ball's centre moves, its turn and
 //! the chord's bend, [`Sweep::half_motion`]). So a motion between two states is clear all the
 //! way when, at each end, every link `l` is clear of the objects and the map by that bound
-//! `m_l`, and each pair of links by the sum of theirs. Each edge's states (at the validation's
+//! `m_l`, and each pair of links by the sum of theirs or, where that is less, by half of how
+//! far the joints between them can move one relative to the other
+//! ([`Sweep::pair_half_motion`]: a hand and its fingers, with no joint between them, need no
+//! margin from each other). Each edge's states (at the validation's
 //! resolution) are checked so, the links grown by those margins (a state's the larger of its
 //! two segments'): eight states at a time in the sphere lanes first (grown by the eight
 //! states' largest), alone where a batch is flagged, then on the exact geometry with the
@@ -63,6 +66,10 @@ pub(crate) struct Certified {
     /// Per asked state, per link: the margin it must be clear by.
     margins: Vec<f64>,
     margins32: Vec<f32>,
+    /// Per pair of links (`links × links`): the margin two links must be clear of each other
+    /// by at the current level, from the joints between them ([`Sweep::pair_half_motion`]).
+    pair_margins: Vec<f64>,
+    pair_margins32: Vec<f32>,
     q: Vec<f64>,
     lanes: Vec<F8>,
     uncertified: u64,
@@ -86,6 +93,8 @@ impl Certified {
             slots: FxHashMap::default(),
             margins: Vec::new(),
             margins32: vec![0.0; links],
+            pair_margins: vec![0.0; links * links],
+            pair_margins32: vec![0.0; links * links],
             q: vec![0.0; n],
             lanes: vec![F8::splat(0.0); n],
             uncertified: 0,
@@ -112,7 +121,7 @@ impl Certified {
             .windows(2)
             .find_map(|w| self.edge_contact(robot, (&mut *batch, &mut *exact), resolution, w));
         batch.deflate();
-        exact.set_margins(&[]);
+        exact.set_margins(&[], &[]);
         found
     }
 
@@ -159,7 +168,7 @@ impl Certified {
                 // As far as it is halved (the last level: the checkers stay plain for the
                 // rest of it): its states checked as a discrete walk would.
                 batch.deflate();
-                exact.set_margins(&[]);
+                exact.set_margins(&[], &[]);
                 for k in [k0, k1] {
                     if self.known[&k].free {
                         continue;
@@ -212,6 +221,11 @@ impl Certified {
         let links = self.links;
         for (s, d) in self.step.iter_mut().zip(&self.delta) {
             *s = d / parts as f64;
+        }
+        self.sweep
+            .pair_half_motion(&self.step, &mut self.pair_margins);
+        for (m32, m) in self.pair_margins32.iter_mut().zip(&self.pair_margins) {
+            *m32 = *m as f32;
         }
         self.asked.clear();
         self.slots.clear();
@@ -270,13 +284,14 @@ impl Certified {
                     *m32 = m32.max(m as f32);
                 }
             }
-            batch.inflate(&self.margins32);
+            batch.inflate(&self.margins32, &self.pair_margins32);
             let batch_clear = !batch.may_collide(&self.lanes);
             for &(k, slot) in chunk {
                 let clear = batch_clear || {
                     robot.interpolate(a, b, k as f64 / finest as f64, &mut self.q);
                     !batch.state_may_collide(&self.q) || {
-                        exact.set_margins(&self.margins[slot * links..(slot + 1) * links]);
+                        let own = &self.margins[slot * links..(slot + 1) * links];
+                        exact.set_margins(own, &self.pair_margins);
                         exact.is_valid(&self.q)
                     }
                 };

@@ -38,6 +38,8 @@ pub struct Sweep {
     ball: Vec<Option<([f64; 3], f64)>>,
     /// Per variable: it turns revolute joints only (a prismatic joint turns nothing).
     revolute: Vec<bool>,
+    /// `moves[j * links + l]`: variable `j` moves link `l` (drives a joint on its chain).
+    moves: Vec<bool>,
 }
 
 impl Sweep {
@@ -46,6 +48,7 @@ impl Sweep {
         let links = robot.links();
         let (n, dof) = (links.len(), robot.dof());
         let mut reach = vec![0.0; dof * n];
+        let mut moves = vec![false; dof * n];
         let mut ball = vec![None; n];
         for l in 0..n {
             let spheres = robot.spheres().bounds.get(l).copied().flatten();
@@ -67,9 +70,11 @@ impl Sweep {
                         // The axis passes through the link's origin.
                         let r: &mut f64 = &mut reach[variable * n + l];
                         *r = r.max(along);
+                        moves[variable * n + l] = true;
                     }
                     Motion::Prismatic { variable, .. } => {
                         reach[variable * n + l] = 1.0;
+                        moves[variable * n + l] = true;
                         let v = &robot.variables()[*variable];
                         offset += v.lower.abs().max(v.upper.abs());
                     }
@@ -89,6 +94,7 @@ impl Sweep {
             reach,
             ball,
             revolute,
+            moves,
         }
     }
 
@@ -131,11 +137,37 @@ impl Sweep {
             let Some((_, radius)) = ball else { continue };
             // The revolute turns that move the link.
             let turn: f64 = (0..delta.len())
-                .filter(|&j| self.revolute[j] && self.reach[j * n + l] > 0.0)
+                .filter(|&j| self.revolute[j] && self.moves[j * n + l])
                 .map(|j| delta[j].abs())
                 .sum();
             let chord = (Vector3::from(ends.1[l]) - Vector3::from(ends.0[l])).norm();
             *o = o.min(0.5 * (chord + radius * turn) + 3.0 * s * structural / 8.0);
+        }
+    }
+}
+
+impl Sweep {
+    /// Writes into `out` (`links × links`, symmetric) how far the straight motion of
+    /// differences `delta` changes the distance between any point of one link and any point
+    /// of another from what it is at the nearer end: half the structural bound of their motion
+    /// relative to each other, which only the joints between them make (those before both
+    /// carry both alike). Two links with no joint between them keep their distances.
+    pub fn pair_half_motion(&self, delta: &[f64], out: &mut [f64]) {
+        let n = self.links;
+        let out = &mut out[..n * n];
+        out.fill(0.0);
+        for (j, d) in delta.iter().enumerate() {
+            let d = 0.5 * d.abs();
+            if d == 0.0 {
+                continue;
+            }
+            let (moves, reach) = (&self.moves[j * n..][..n], &self.reach[j * n..][..n]);
+            for a in (0..n).filter(|&a| moves[a]) {
+                for b in (0..n).filter(|&b| !moves[b]) {
+                    out[a * n + b] += d * reach[a];
+                    out[b * n + a] += d * reach[a];
+                }
+            }
         }
     }
 }
@@ -157,7 +189,8 @@ mod tests {
     /// each sphere's surface) farther than the structural bound, nor farther from its place
     /// at the nearer end than the bound between the two states, measured at many states along
     /// each motion; neither bound is vacuous, and the one between states is less than half the
-    /// structural one on the hand.
+    /// structural one on the hand. Nor does any two links' distance change by more than their
+    /// pair's bound, which is zero for links with no joint between them.
     #[test]
     fn no_point_moves_farther_than_the_bounds() {
         for name in ["fetch", "panda"] {
@@ -175,6 +208,10 @@ mod tests {
             let mut q = vec![0.0; n];
             let (mut tightest, mut half_tightest): (f64, f64) = (0.0, 0.0);
             let mut ratios = Vec::new();
+            let mut pairs = vec![0.0; links * links];
+            // Links with no joint between them were seen keeping their distance; the tightest
+            // bound of the others.
+            let (mut rigid_seen, mut pair_tightest): (bool, f64) = (false, 0.0);
             for _ in 0..300 {
                 robot.sample_uniform(&mut rng, &mut a);
                 robot.sample_uniform(&mut rng, &mut target);
@@ -195,15 +232,41 @@ mod tests {
                         [(l, Point3::from(c)), (l, Point3::from(c) + u * r)]
                     })
                     .collect();
+                let firsts: Vec<usize> = (0..points.len())
+                    .filter(|&i| i == 0 || points[i].0 != points[i - 1].0)
+                    .collect();
                 let at = |poses: &[Pose]| -> Vec<Point3<f64>> {
                     points.iter().map(|(l, p)| poses[*l] * p).collect()
                 };
                 let (start, end) = (at(&poses), at(&end_poses));
+                sweep.pair_half_motion(&delta, &mut pairs);
                 for k in 1..32 {
                     let t = k as f64 / 32.0;
                     robot.interpolate(&a, &b, t, &mut q);
                     robot.forward_kinematics(&q, &mut poses);
-                    for (i, ((l, _), p)) in points.iter().zip(at(&poses)).enumerate() {
+                    let now = at(&poses);
+                    // Between links: the first point of each (a sphere centre) against the
+                    // others' first points.
+                    for (i, j) in firsts
+                        .iter()
+                        .flat_map(|&i| firsts.iter().map(move |&j| (i, j)))
+                    {
+                        let (la, lb) = (points[i].0, points[j].0);
+                        let nearer = if t <= 0.5 { &start } else { &end };
+                        let change =
+                            ((now[i] - now[j]).norm() - (nearer[i] - nearer[j]).norm()).abs();
+                        let cap = pairs[la * links + lb];
+                        assert!(
+                            la == lb || change <= cap + 1e-9,
+                            "{name}: links {la} and {lb} came {change} m nearer or farther \
+                             (bound {cap})"
+                        );
+                        rigid_seen |= la != lb && cap == 0.0 && change < 1e-9;
+                        if change > 1e-3 {
+                            pair_tightest = pair_tightest.max(change / cap);
+                        }
+                    }
+                    for (i, ((l, _), p)) in points.iter().zip(now).enumerate() {
                         let moved = (p - start[i]).norm();
                         let strayed = (p - if t <= 0.5 { start[i] } else { end[i] }).norm();
                         assert!(
@@ -228,6 +291,10 @@ mod tests {
                     .unwrap();
                 ratios.push(half[far] / (0.5 * bound[far]));
             }
+            assert!(
+                rigid_seen && pair_tightest > 0.3,
+                "{name}: no two links rigidly joined, or the pairs' bound loose ({pair_tightest})"
+            );
             ratios.sort_by(f64::total_cmp);
             let median = ratios[ratios.len() / 2];
             assert!(tightest > 0.3, "{name}: the bound is loose ({tightest})");

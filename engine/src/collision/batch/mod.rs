@@ -77,6 +77,9 @@ struct SelfPair {
     ra: f32,
     rb: f32,
     reach2: f32,
+    /// Added to the sum of two spheres' radii in the pair's final test: the pair's own
+    /// margin less the sum of the links' ([`BatchChecker::inflate`]); zero otherwise.
+    adjust: f32,
 }
 
 /// Items one `u64` mask holds: objects go down the hierarchy in groups of this many, and a
@@ -295,6 +298,7 @@ impl BatchChecker {
                     ra,
                     rb,
                     reach2: r * r,
+                    adjust: 0.0,
                 })
             })
             .collect();
@@ -484,9 +488,11 @@ impl BatchChecker {
     /// Grows every ball of each link `l` by `by[l]` metres (links beyond `by` not at all),
     /// and its bound box likewise, from the radii as built: the checks then find a state in
     /// contact wherever a link comes within `by[l]` of an object or the map, and two links
-    /// within the sum of theirs of each other. [`BatchChecker::deflate`] undoes it. Links that
-    /// never move are placed once, so they are not grown.
-    pub fn inflate(&mut self, by: &[f32]) {
+    /// `a` and `b` within the sum of theirs of each other, or within `pairs[a * links + b]`
+    /// where that is less (the spheres' final test; `pairs` empty: the sum).
+    /// [`BatchChecker::deflate`] undoes it. Links that never move are placed once, so they are
+    /// not grown.
+    pub fn inflate(&mut self, by: &[f32], pairs: &[f32]) {
         let base = self.uninflated.get_or_insert_with(|| {
             Box::new(Radii {
                 bound: self.bound.clone(),
@@ -512,11 +518,15 @@ impl BatchChecker {
                 }
             }
         }
+        let links = self.bound.len();
         for (pair, base) in self.pairs.iter_mut().zip(&base.pairs) {
-            pair.ra = base.ra + grow(pair.a);
-            pair.rb = base.rb + grow(pair.b);
+            let (ga, gb) = (grow(pair.a), grow(pair.b));
+            pair.ra = base.ra + ga;
+            pair.rb = base.rb + gb;
             let r = pair.ra + pair.rb;
             pair.reach2 = r * r;
+            let cap = pairs.get(pair.a * links + pair.b).copied();
+            pair.adjust = cap.map_or(0.0, |cap| cap.max(0.0).min(ga + gb) - (ga + gb));
         }
     }
 
@@ -943,7 +953,14 @@ impl BatchChecker {
         // Most pairs' bounds are apart in every lane: a tight loop finds those that are not.
         while let Some(k) = next_overlapping(&self.pairs, &self.bounds, next) {
             next = k + 1;
-            let SelfPair { a, b, ra, rb, .. } = self.pairs[k];
+            let SelfPair {
+                a,
+                b,
+                ra,
+                rb,
+                adjust,
+                ..
+            } = self.pairs[k];
             let (ba, bb) = (self.bounds[a], self.bounds[b]);
             if !self.box_reached(a, bb, rb) || !self.box_reached(b, ba, ra) {
                 continue;
@@ -952,7 +969,7 @@ impl BatchChecker {
             let clusters_b = self.link_clusters[b].clone();
             for first in clusters_b.clone().step_by(MASK_BITS) {
                 let group = first..clusters_b.end.min(first + MASK_BITS);
-                if self.clusters_touch((a, ba, ra), (b, bb, rb), group) {
+                if self.clusters_touch((a, ba, ra), (b, bb, rb), group, adjust) {
                     return true;
                 }
             }
@@ -961,13 +978,15 @@ impl BatchChecker {
     }
 
     /// True when a sphere of link `a` (bound centres `ba`, radius `ra`) overlaps one of the
-    /// clusters `clusters_b` (at most 64) of link `b` in some lane.
+    /// clusters `clusters_b` (at most 64) of link `b` in some lane, the spheres' radii summed
+    /// with `adjust` (the pair's [`SelfPair::adjust`]).
     #[inline(always)]
     fn clusters_touch(
         &mut self,
         (a, ba, ra): (usize, [F8; 3], f32),
         (b, bb, rb): (usize, [F8; 3], f32),
         clusters_b: std::ops::Range<usize>,
+        adjust: f32,
     ) -> bool {
         // The clusters of `b` within reach of `a`'s bound, as bits.
         let mut near_b = 0u64;
@@ -996,7 +1015,7 @@ impl BatchChecker {
                     continue;
                 }
                 self.place_spheres(a, ca);
-                if self.spheres_touch(b, ca, cb) {
+                if self.spheres_touch(b, ca, cb, adjust) {
                     return true;
                 }
             }
@@ -1024,9 +1043,10 @@ impl BatchChecker {
     }
 
     /// True when a sphere of cluster `ca` (placed) overlaps one of cluster `cb` of link `b`
-    /// in some lane; `cb`'s spheres are placed only if a sphere of `ca` reaches its bound.
+    /// in some lane, their radii summed with `adjust`; `cb`'s spheres are placed only if a
+    /// sphere of `ca` reaches its bound.
     #[inline(always)]
-    fn spheres_touch(&mut self, b: usize, ca: usize, cb: usize) -> bool {
+    fn spheres_touch(&mut self, b: usize, ca: usize, cb: usize, adjust: f32) -> bool {
         let (pb, crb) = (self.cluster_at[cb], self.cluster[cb].1);
         let range_a = self.cluster[ca].2.clone();
         for i in range_a {
@@ -1040,7 +1060,7 @@ impl BatchChecker {
             let range_b = self.cluster[cb].2.clone();
             let (at_b, model_b) = (&self.sphere_at[range_b.clone()], &self.sphere[range_b]);
             for (&pj, &(_, rj)) in at_b.iter().zip(model_b) {
-                if overlap(pi, ri, pj, rj) {
+                if overlap(pi, ri + adjust, pj, rj) {
                     return true;
                 }
             }
