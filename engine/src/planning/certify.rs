@@ -4,7 +4,7 @@
 //! centimetres between two of them: it can graze an object there unseen. Between two states
 //! the robot's [`Sweep`] bounds how far any point of each link strays from where it is at the
 //! nearer of the two (from their poses: the chord its bound ball's centre moves, its turn and
-//! the chord's bend, [`Sweep::half_motion`]). So a motion between two states is clear all the
+//! the chord's bend, [`Step::half_motion`]). So a motion between two states is clear all the
 //! way when, at each end, every link `l` is clear of the objects and the map by that bound
 //! `m_l`, and each pair of links by the sum of theirs or, where that is less, by half of how
 //! far the joints between them can move one relative to the other
@@ -24,7 +24,7 @@ use crate::collision::batch::lanes::{F8, LANES};
 use crate::collision::batch::BatchChecker;
 use crate::collision::checker::{steps_over, Contact};
 use crate::collision::exact::ExactChecker;
-use crate::robot::sweep::Sweep;
+use crate::robot::sweep::{Step, Sweep};
 use crate::robot::Robot;
 use crate::Pose;
 use rustc_hash::FxHashMap;
@@ -32,6 +32,10 @@ use rustc_hash::FxHashMap;
 /// Halvings of a segment before its states are only checked (the finest segments are
 /// `2^DEPTH` times shorter than the validation's resolution).
 pub const DEPTH: u32 = 5;
+
+/// A batch of states is checked with the links grown by as much as the last batch where that
+/// covers its margins and exceeds them by at most a quarter or this much (metres).
+const REGROW_SLACK: f32 = 5e-4;
 
 /// What each state of an edge is known to be, by its place on the finest grid.
 #[derive(Clone, Copy)]
@@ -50,8 +54,9 @@ pub(crate) struct Certified {
     sweep: Sweep,
     links: usize,
     delta: Vec<f64>,
-    /// A segment's differences at the current level.
+    /// A segment's differences at the current level, and what they bound.
     step: Vec<f64>,
+    bounds: Step,
     /// A segment's margins (one per link).
     half: Vec<f64>,
     poses: Vec<Pose>,
@@ -66,6 +71,8 @@ pub(crate) struct Certified {
     /// Per asked state, per link: the margin it must be clear by.
     margins: Vec<f64>,
     margins32: Vec<f32>,
+    /// The links' margins the batch checker is grown by (empty: not grown at this level).
+    inflated: Vec<f32>,
     /// Per pair of links (`links × links`): the margin two links must be clear of each other
     /// by at the current level, from the joints between them ([`Sweep::pair_half_motion`]).
     pair_margins: Vec<f64>,
@@ -83,6 +90,7 @@ impl Certified {
             links,
             delta: vec![0.0; n],
             step: vec![0.0; n],
+            bounds: Step::default(),
             half: vec![0.0; links],
             poses: vec![Pose::identity(); links],
             known: FxHashMap::default(),
@@ -93,6 +101,7 @@ impl Certified {
             slots: FxHashMap::default(),
             margins: Vec::new(),
             margins32: vec![0.0; links],
+            inflated: Vec::new(),
             pair_margins: vec![0.0; links * links],
             pair_margins32: vec![0.0; links * links],
             q: vec![0.0; n],
@@ -209,7 +218,7 @@ impl Certified {
 
     /// Gathers the states the current segments (each `1 / parts` of the edge) need clear at
     /// `level` and not yet known so, each with its margins: per link, the larger of its
-    /// segments' [`Sweep::half_motion`].
+    /// segments' [`Step::half_motion`].
     fn margins_at(
         &mut self,
         robot: &Robot,
@@ -222,6 +231,7 @@ impl Certified {
         for (s, d) in self.step.iter_mut().zip(&self.delta) {
             *s = d / parts as f64;
         }
+        self.sweep.step(&self.step, &mut self.bounds);
         self.sweep
             .pair_half_motion(&self.step, &mut self.pair_margins);
         for (m32, m) in self.pair_margins32.iter_mut().zip(&self.pair_margins) {
@@ -234,8 +244,8 @@ impl Certified {
             let (k0, k1) = self.segments[i];
             let ends = [k0, k1].map(|k| self.know(robot, (a, b), finest, k).slot);
             let c = |slot: usize| &self.centres[slot * links..(slot + 1) * links];
-            self.sweep
-                .half_motion(&self.step, (c(ends[0]), c(ends[1])), &mut self.half);
+            self.bounds
+                .half_motion((c(ends[0]), c(ends[1])), &mut self.half);
             for k in [k0, k1] {
                 if self.known[&k].clear_at.is_some_and(|at| at <= level) {
                     continue;
@@ -267,6 +277,8 @@ impl Certified {
         level: u32,
     ) {
         let links = self.links;
+        // The pairs' margins are new at each level.
+        self.inflated.clear();
         for chunk in self.asked.chunks(LANES) {
             self.margins32.fill(0.0);
             for (i, &(k, slot)) in chunk
@@ -284,7 +296,20 @@ impl Certified {
                     *m32 = m32.max(m as f32);
                 }
             }
-            batch.inflate(&self.margins32, &self.pair_margins32);
+            // Grown again only where the last growth falls short or is much too large: growing
+            // every sphere costs about as much as checking the batch.
+            let fits = self.inflated.len() == links
+                && self
+                    .inflated
+                    .iter()
+                    .zip(&self.margins32)
+                    .all(|(&have, &need)| {
+                        need <= have && have <= need + (0.25 * need).max(REGROW_SLACK)
+                    });
+            if !fits {
+                batch.inflate(&self.margins32, &self.pair_margins32);
+                self.inflated.clone_from(&self.margins32);
+            }
             let batch_clear = !batch.may_collide(&self.lanes);
             for &(k, slot) in chunk {
                 let clear = batch_clear || {

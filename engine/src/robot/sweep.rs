@@ -9,7 +9,7 @@
 //! straight motion of differences `Δ` moves no point of link `l` by more than
 //! `Σ_j |Δ_j| · reach[j][l]` ([`Sweep::link_motion`]), for any configuration.
 //!
-//! Between two known states the bound is tighter ([`Sweep::half_motion`]). With the end
+//! Between two known states the bound is tighter ([`Step::half_motion`]). With the end
 //! states' poses the centre `c` of each link's bound ball is known at both ends, and along the
 //! motion it leaves the chord between them by at most `K / 8`, `K` bounding its acceleration
 //! (the joints' rates are constant along a straight motion): `K ≤ 3 · S · M`, with `S = Σ_j |Δ_j|`
@@ -122,31 +122,34 @@ impl Sweep {
         }
     }
 
-    /// Writes into `out` (one per link) how far any point of each link strays along the
-    /// straight motion of differences `delta` from where it is at the nearer end (the start
-    /// up to the midpoint, the end after it), `ends` the links' [`Sweep::centres`] at the
-    /// motion's two states: see the module docs; at most half the structural bound.
-    pub fn half_motion(&self, delta: &[f64], ends: (&[[f64; 3]], &[[f64; 3]]), out: &mut [f64]) {
+    /// Writes into `out` what the straight motion of differences `delta` bounds alone, for
+    /// [`Step::half_motion`] between two states that far apart.
+    pub fn step(&self, delta: &[f64], out: &mut Step) {
         let n = self.links;
-        let out = &mut out[..n];
-        self.link_motion(delta, out);
+        out.half_structural.resize(n, 0.0);
+        out.rest.resize(n, 0.0);
+        self.link_motion(delta, &mut out.half_structural);
         let s: f64 = delta.iter().map(|d| d.abs()).sum();
-        for (l, (o, ball)) in out.iter_mut().zip(&self.ball).enumerate() {
-            let structural = *o;
-            *o *= 0.5;
-            let Some((_, radius)) = ball else { continue };
-            // The revolute turns that move the link.
+        for (l, (h, rest)) in out
+            .half_structural
+            .iter_mut()
+            .zip(&mut out.rest)
+            .enumerate()
+        {
+            let structural = *h;
+            *h *= 0.5;
+            // The revolute turns that move the link, its radius, and the chord's bend.
             let turn: f64 = (0..delta.len())
                 .filter(|&j| self.revolute[j] && self.moves[j * n + l])
                 .map(|j| delta[j].abs())
                 .sum();
-            let chord = (Vector3::from(ends.1[l]) - Vector3::from(ends.0[l])).norm();
-            *o = o.min(0.5 * (chord + radius * turn) + 3.0 * s * structural / 8.0);
+            *rest = match self.ball[l] {
+                Some((_, radius)) => 0.5 * radius * turn + 3.0 * s * structural / 8.0,
+                None => f64::INFINITY,
+            };
         }
     }
-}
 
-impl Sweep {
     /// Writes into `out` (`links × links`, symmetric) how far the straight motion of
     /// differences `delta` changes the distance between any point of one link and any point
     /// of another from what it is at the nearer end: half the structural bound of their motion
@@ -168,6 +171,34 @@ impl Sweep {
                     out[b * n + a] += d * reach[a];
                 }
             }
+        }
+    }
+}
+
+/// What a straight motion's differences bound alone ([`Sweep::step`]); the states at its ends
+/// give the rest ([`Step::half_motion`]).
+#[derive(Debug, Clone, Default)]
+pub struct Step {
+    /// Per link: half the structural bound.
+    half_structural: Vec<f64>,
+    /// Per link: half the turn times the link's radius, plus the chord's bend (infinite for a
+    /// link without geometry: the structural bound holds).
+    rest: Vec<f64>,
+}
+
+impl Step {
+    /// Writes into `out` (one per link) how far any point of each link strays along the
+    /// motion from where it is at the nearer end (the start up to the midpoint, the end after
+    /// it), `ends` the links' [`Sweep::centres`] at the motion's two states: see the module
+    /// docs; at most half the structural bound.
+    pub fn half_motion(&self, ends: (&[[f64; 3]], &[[f64; 3]]), out: &mut [f64]) {
+        let chords = ends.0.iter().zip(ends.1);
+        for (o, ((h, rest), (c0, c1))) in out
+            .iter_mut()
+            .zip(self.half_structural.iter().zip(&self.rest).zip(chords))
+        {
+            let chord = (Vector3::from(*c1) - Vector3::from(*c0)).norm();
+            *o = h.min(0.5 * chord + rest);
         }
     }
 }
@@ -209,6 +240,7 @@ mod tests {
             let (mut tightest, mut half_tightest): (f64, f64) = (0.0, 0.0);
             let mut ratios = Vec::new();
             let mut pairs = vec![0.0; links * links];
+            let mut step_bounds = Step::default();
             // Links with no joint between them were seen keeping their distance; the tightest
             // bound of the others.
             let (mut rigid_seen, mut pair_tightest): (bool, f64) = (false, 0.0);
@@ -223,7 +255,8 @@ mod tests {
                 robot.forward_kinematics(&b, &mut end_poses);
                 sweep.centres(&poses, &mut c0);
                 sweep.centres(&end_poses, &mut c1);
-                sweep.half_motion(&delta, (&c0, &c1), &mut half);
+                sweep.step(&delta, &mut step_bounds);
+                step_bounds.half_motion((&c0, &c1), &mut half);
                 // Per sphere: its centre and a point on its surface, in the link's frame.
                 let points: Vec<(usize, Point3<f64>)> = (0..links)
                     .flat_map(|l| robot.spheres().link_spheres(l).map(move |s| (l, s)))
