@@ -190,9 +190,10 @@ pub struct DemoArgs {
     /// Instance name of the demo's daemon (what `ember monitor` shows).
     #[arg(long, default_value = "demo")]
     pub instance: String,
-    /// Have the daemon certify every returned path between its states (`planner.certify`).
+    /// Have the daemon check returned paths at their states only, not certify them between
+    /// (`planner.certify = false`).
     #[arg(long)]
-    pub certify: bool,
+    pub no_certify: bool,
 }
 
 #[derive(Debug, Args)]

@@ -169,8 +169,8 @@ pub struct PlannerConfig {
     /// The returned path's validation walks its edges this many times finer than the search.
     pub validation_refine: f64,
     /// Certify returned paths clear between their validated states too (the engine's
-    /// `PlannerParams::certify`).
-    #[serde(default)]
+    /// `PlannerParams::certify`); on unless configured off.
+    #[serde(default = "certify_by_default")]
     pub certify: bool,
     pub use_map: bool,
     /// With `use_map`: space never observed inside this box (min and max corners, base frame,
@@ -446,4 +446,10 @@ impl Config {
             .map_err(|e| format!("[trajectory]: {e}"))?;
         Ok(())
     }
+}
+
+/// `planner.certify` where a configuration leaves it out: a path for a real robot is
+/// certified clear between its states.
+fn certify_by_default() -> bool {
+    true
 }

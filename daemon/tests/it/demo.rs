@@ -170,43 +170,59 @@ fn the_demo_plans_with_every_method_through_the_daemon_and_keeps_its_session() {
     let _ = std::fs::remove_dir_all(dir);
 }
 
-/// `ember demo --certify`: the daemon certifies every returned path between its states, so
-/// none grazes the true world even between the demo's finer states (the same three picks at
-/// seed 3 without it graze with every method in a run on this release).
+/// `ember demo`: by default the daemon certifies every returned path between its states, so
+/// none grazes the true world even between the demo's finer states; the same three picks at
+/// seed 3 with `--no-certify` (the states alone) graze it.
 #[test]
 fn certified_demo_paths_graze_nothing() {
     let dir = std::env::temp_dir().join(format!("ember-demo-cert-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    let out = crate::ember(&[
-        "demo",
-        "--episodes",
-        "3",
-        "--seed",
-        "3",
-        "--certify",
-        "--instance",
-        &format!("it-demo-cert-{}", std::process::id()),
-        "--no-record",
-        "--db",
-        dir.join("db").to_str().unwrap(),
-    ]);
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{stdout}{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let run = |certify: bool| {
+        let _ = std::fs::remove_dir_all(&dir);
+        let instance = format!("it-demo-cert-{}-{certify}", std::process::id());
+        let db = dir.join("db");
+        let mut args = vec![
+            "demo",
+            "--episodes",
+            "3",
+            "--seed",
+            "3",
+            "--instance",
+            &instance,
+        ];
+        args.extend(["--no-record", "--db", db.to_str().unwrap()]);
+        if !certify {
+            args.push("--no-certify");
+        }
+        let out = crate::ember(&args);
+        let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+        assert!(
+            out.status.success(),
+            "{stdout}{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        stdout
+    };
+    let certified = run(true);
+    let plain = run(false);
+    let mut plain_grazes = 0;
     for method in ["flame", "spark", "uniform"] {
         for kind in ["demo", "demo_place"] {
-            let r = named_result_line(&stdout, kind, &format!("method={method} "));
+            let r = named_result_line(&certified, kind, &format!("method={method} "));
             let solved: usize = r["solved"].parse().unwrap();
             assert!(solved >= 1, "{kind} {method}: none solved");
             assert_eq!(
                 (r["unsafe"].as_str(), r["grazes"].as_str()),
                 ("0", "0"),
-                "{kind} {method}: {stdout}"
+                "{kind} {method}: {certified}"
             );
+            let r = named_result_line(&plain, kind, &format!("method={method} "));
+            assert_eq!(r["unsafe"], "0", "{kind} {method}: {plain}");
+            plain_grazes += r["grazes"].parse::<usize>().unwrap();
         }
     }
+    assert!(
+        plain_grazes > 0,
+        "uncertified paths grazed nothing: {plain}"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -76,8 +76,8 @@ impl DemoDaemon {
         if let Some(h) = spec.hand_protrusion {
             table.insert("sphere_protrusion_hand".into(), h.into());
         }
-        if args.certify {
-            let planner = toml::Table::from_iter([("certify".to_string(), true.into())]);
+        if args.no_certify {
+            let planner = toml::Table::from_iter([("certify".to_string(), false.into())]);
             table.insert("planner".into(), planner.into());
         }
         std::fs::write(&config, toml::to_string(&table)?)?;
