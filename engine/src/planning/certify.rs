@@ -26,7 +26,6 @@ use crate::collision::checker::{steps_over, Contact};
 use crate::collision::exact::ExactChecker;
 use crate::robot::sweep::{Step, Sweep};
 use crate::robot::Robot;
-use crate::Pose;
 use rustc_hash::FxHashMap;
 
 /// Halvings of a segment before its states are only checked (the finest segments are
@@ -59,7 +58,6 @@ pub(crate) struct Certified {
     bounds: Step,
     /// A segment's margins (one per link).
     half: Vec<f64>,
-    poses: Vec<Pose>,
     known: FxHashMap<u64, Known>,
     /// Per known state, per link: its bound ball's centre ([`Sweep::centres`]).
     centres: Vec<[f64; 3]>,
@@ -77,6 +75,9 @@ pub(crate) struct Certified {
     /// by at the current level, from the joints between them ([`Sweep::pair_half_motion`]).
     pair_margins: Vec<f64>,
     pair_margins32: Vec<f32>,
+    /// States to place, and their links' centres in eight lanes.
+    missing: Vec<u64>,
+    centres8: Vec<[F8; 3]>,
     q: Vec<f64>,
     lanes: Vec<F8>,
     uncertified: u64,
@@ -92,7 +93,6 @@ impl Certified {
             step: vec![0.0; n],
             bounds: Step::default(),
             half: vec![0.0; links],
-            poses: vec![Pose::identity(); links],
             known: FxHashMap::default(),
             centres: Vec::new(),
             segments: Vec::new(),
@@ -104,6 +104,8 @@ impl Certified {
             inflated: Vec::new(),
             pair_margins: vec![0.0; links * links],
             pair_margins32: vec![0.0; links * links],
+            missing: Vec::new(),
+            centres8: vec![[F8::splat(0.0); 3]; links],
             q: vec![0.0; n],
             lanes: vec![F8::splat(0.0); n],
             uncertified: 0,
@@ -151,15 +153,17 @@ impl Certified {
         for k in 0..n {
             self.segments.push((k * unit, (k + 1) * unit));
         }
-        // The validation's own states were found free.
-        for k in 0..=n {
-            self.know(robot, (a, b), finest, k * unit).free = true;
-        }
         for level in 0..=DEPTH {
             if self.segments.is_empty() {
                 break;
             }
-            self.margins_at(robot, (a, b), finest, n << level, level);
+            self.margins_at(robot, batch, (a, b), finest, n << level, level);
+            if level == 0 {
+                // The validation's own states were found free.
+                for k in 0..=n {
+                    self.known.get_mut(&(k * unit)).expect("an end").free = true;
+                }
+            }
             self.clear_states(robot, (&mut *batch, &mut *exact), (a, b), finest, level);
             self.next.clear();
             for i in 0..self.segments.len() {
@@ -197,23 +201,45 @@ impl Certified {
         None
     }
 
-    /// The state `k` (on the finest grid of `finest` steps from `a` to `b`), its links'
-    /// centres computed on first sight.
-    fn know(&mut self, robot: &Robot, (a, b): (&[f64], &[f64]), finest: u64, k: u64) -> &mut Known {
-        let (links, centres) = (self.links, &mut self.centres);
-        self.known.entry(k).or_insert_with(|| {
-            robot.interpolate(a, b, k as f64 / finest as f64, &mut self.q);
-            robot.forward_kinematics(&self.q, &mut self.poses);
-            let slot = centres.len() / links;
-            centres.resize(centres.len() + links, [0.0; 3]);
-            self.sweep
-                .centres(&self.poses, &mut centres[slot * links..]);
-            Known {
-                clear_at: None,
-                free: false,
-                slot,
+    /// Makes the segments' ends not seen yet known, their links' centres placed eight states
+    /// at a time in the batch checker's lanes ([`BatchChecker::bound_centres`]).
+    fn know_ends(
+        &mut self,
+        robot: &Robot,
+        batch: &mut BatchChecker,
+        (a, b): (&[f64], &[f64]),
+        finest: u64,
+    ) {
+        let links = self.links;
+        self.missing.clear();
+        for &(k0, k1) in &self.segments {
+            self.missing
+                .extend([k0, k1].into_iter().filter(|k| !self.known.contains_key(k)));
+        }
+        self.missing.sort_unstable();
+        self.missing.dedup();
+        for chunk in self.missing.chunks(LANES) {
+            fill_lanes(
+                robot,
+                (a, b),
+                finest,
+                chunk.iter().copied(),
+                &mut self.q,
+                &mut self.lanes,
+            );
+            batch.bound_centres(&self.lanes, &mut self.centres8);
+            for (i, &k) in chunk.iter().enumerate() {
+                let slot = self.centres.len() / links;
+                let at = self.centres8.iter().map(|c| c.map(|v| f64::from(v.0[i])));
+                self.centres.extend(at);
+                let known = Known {
+                    clear_at: None,
+                    free: false,
+                    slot,
+                };
+                self.known.insert(k, known);
             }
-        })
+        }
     }
 
     /// Gathers the states the current segments (each `1 / parts` of the edge) need clear at
@@ -222,6 +248,7 @@ impl Certified {
     fn margins_at(
         &mut self,
         robot: &Robot,
+        batch: &mut BatchChecker,
         (a, b): (&[f64], &[f64]),
         finest: u64,
         parts: u64,
@@ -237,12 +264,13 @@ impl Certified {
         for (m32, m) in self.pair_margins32.iter_mut().zip(&self.pair_margins) {
             *m32 = *m as f32;
         }
+        self.know_ends(robot, batch, (a, b), finest);
         self.asked.clear();
         self.slots.clear();
         self.margins.clear();
         for i in 0..self.segments.len() {
             let (k0, k1) = self.segments[i];
-            let ends = [k0, k1].map(|k| self.know(robot, (a, b), finest, k).slot);
+            let ends = [k0, k1].map(|k| self.known[&k].slot);
             let c = |slot: usize| &self.centres[slot * links..(slot + 1) * links];
             self.bounds
                 .half_motion((c(ends[0]), c(ends[1])), &mut self.half);
@@ -280,17 +308,16 @@ impl Certified {
         // The pairs' margins are new at each level.
         self.inflated.clear();
         for chunk in self.asked.chunks(LANES) {
+            fill_lanes(
+                robot,
+                (a, b),
+                finest,
+                chunk.iter().map(|&(k, _)| k),
+                &mut self.q,
+                &mut self.lanes,
+            );
             self.margins32.fill(0.0);
-            for (i, &(k, slot)) in chunk
-                .iter()
-                .chain(std::iter::repeat(chunk.last().unwrap()))
-                .take(LANES)
-                .enumerate()
-            {
-                robot.interpolate(a, b, k as f64 / finest as f64, &mut self.q);
-                for (lane, &v) in self.lanes.iter_mut().zip(&self.q) {
-                    lane.0[i] = v as f32;
-                }
+            for &(_, slot) in chunk {
                 let m = &self.margins[slot * links..(slot + 1) * links];
                 for (m32, &m) in self.margins32.iter_mut().zip(m) {
                     *m32 = m32.max(m as f32);
@@ -330,18 +357,92 @@ impl Certified {
     }
 }
 
+/// Writes the states `ks` (places on the finest grid of `finest` steps from `a` to `b`, at
+/// most eight) into `lanes` (per variable), the last repeated in the lanes left over.
+fn fill_lanes(
+    robot: &Robot,
+    (a, b): (&[f64], &[f64]),
+    finest: u64,
+    ks: impl IntoIterator<Item = u64>,
+    q: &mut [f64],
+    lanes: &mut [F8],
+) {
+    let mut last = None;
+    let mut ks = ks.into_iter();
+    for i in 0..LANES {
+        if let Some(k) = ks.next().or(last) {
+            if last != Some(k) || i == 0 {
+                robot.interpolate(a, b, k as f64 / finest as f64, q);
+            }
+            last = Some(k);
+        }
+        for (lane, &v) in lanes.iter_mut().zip(q.iter()) {
+            lane.0[i] = v as f32;
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
+    use super::fill_lanes;
+    use crate::collision::batch::lanes::{F8, LANES};
+    use crate::collision::batch::BatchChecker;
     use crate::collision::checker::steps_over;
     use crate::collision::exact::ExactChecker;
     use crate::collision::Shape;
     use crate::planning::exact_path_contact;
     use crate::planning::validity::tests::extend_randomly;
     use crate::planning::validity::Validity;
+    use crate::robot::sweep::{Sweep, CENTRE_SLACK};
     use crate::robot::Robot;
     use crate::world::{Environment, Object};
     use crate::Pose;
     use rand::{Rng, SeedableRng};
+
+    /// The links' centres placed in the batch checker's `f32` lanes, from which certification
+    /// takes its chords, are the scalar forward kinematics' within the chords' slack (a
+    /// tenth of it), on random states of both robots.
+    #[test]
+    fn centres_in_the_lanes_are_the_scalar_ones() {
+        for name in ["fetch", "panda"] {
+            let robot = Robot::builtin(name).unwrap();
+            let sweep = Sweep::new(&robot);
+            let mut batch = BatchChecker::new(&robot, &Environment::default());
+            let (n, links) = (robot.dof(), robot.links().len());
+            let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+            let (mut a, mut b) = (vec![0.0; n], vec![0.0; n]);
+            robot.sample_uniform(&mut rng, &mut a);
+            robot.sample_uniform(&mut rng, &mut b);
+            let (mut q, mut lanes) = (vec![0.0; n], vec![F8::splat(0.0); n]);
+            let mut centres8 = vec![[F8::splat(0.0); 3]; links];
+            let mut scalar = vec![[0.0; 3]; links];
+            let mut poses = vec![Pose::identity(); links];
+            let ks: Vec<u64> = (0..LANES as u64).map(|i| i * 37 % 256).collect();
+            fill_lanes(
+                &robot,
+                (&a, &b),
+                256,
+                ks.iter().copied(),
+                &mut q,
+                &mut lanes,
+            );
+            batch.bound_centres(&lanes, &mut centres8);
+            let mut worst: f64 = 0.0;
+            for (i, &k) in ks.iter().enumerate() {
+                robot.interpolate(&a, &b, k as f64 / 256.0, &mut q);
+                robot.forward_kinematics(&q, &mut poses);
+                sweep.centres(&poses, &mut scalar);
+                for l in (0..links).filter(|&l| robot.spheres().bounds[l].is_some()) {
+                    let lane = centres8[l].map(|v| f64::from(v.0[i]));
+                    let d = (0..3)
+                        .map(|x| (lane[x] - scalar[l][x]).powi(2))
+                        .sum::<f64>();
+                    worst = worst.max(d.sqrt());
+                }
+            }
+            assert!(worst < 0.1 * CENTRE_SLACK, "{name}: {worst} m apart");
+        }
+    }
 
     /// On Fetch and the Panda, random paths of two motions among shelves or scattered grains,
     /// most with one more grain planted on a part of the hand halfway between two of

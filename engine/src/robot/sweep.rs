@@ -27,6 +27,10 @@ use super::{Motion, Robot};
 use crate::Pose;
 use nalgebra::{Point3, Vector3};
 
+/// Slack of the chords, metres: the centres may come from `f32` poses (the batch checker's
+/// lanes), rounded far less than this at robot scale.
+pub(crate) const CENTRE_SLACK: f64 = 1e-5;
+
 /// Per planning variable and link, how far a point of the link moves per unit of the variable
 /// at most (see the module docs).
 #[derive(Debug, Clone)]
@@ -34,7 +38,8 @@ pub struct Sweep {
     links: usize,
     /// `reach[j * links + l]`, zero where variable `j` does not move link `l`.
     reach: Vec<f64>,
-    /// Per link: a ball holding its geometry (centre in the link's frame, radius).
+    /// Per link with a sphere model: a ball holding its geometry, centred on the sphere
+    /// model's bound (centre in the link's frame, radius).
     ball: Vec<Option<([f64; 3], f64)>>,
     /// Per variable: it turns revolute joints only (a prismatic joint turns nothing).
     revolute: Vec<bool>,
@@ -53,12 +58,12 @@ impl Sweep {
         for l in 0..n {
             let spheres = robot.spheres().bounds.get(l).copied().flatten();
             let exact = robot.exact_model().link_bound(l);
-            ball[l] = match (spheres, exact) {
-                (Some(a), Some(b)) => Some(enclosing(a, b)),
-                (a, b) => a.or(b),
-            };
+            // Centred where the sphere model's bound is (the point the batch checker places).
+            ball[l] = spheres.map(|s| exact.map_or(s, |e| enclosing(s, e)));
             // From the current link's origin to any point of link `l`, at most.
-            let mut along = ball[l].map_or(0.0, |(c, r)| Vector3::from(c).norm() + r);
+            let own =
+                |b: Option<([f64; 3], f64)>| b.map_or(0.0, |(c, r)| Vector3::from(c).norm() + r);
+            let mut along = own(ball[l]).max(own(exact));
             let mut at = l;
             loop {
                 let link = &links[at];
@@ -113,8 +118,10 @@ impl Sweep {
     }
 
     /// Writes into `out` (one per link) the centre of each link's bound ball at the state
-    /// whose link poses are `poses` ([`Robot::forward_kinematics`]); the link's origin where it
-    /// has no geometry.
+    /// whose link poses are `poses` ([`Robot::forward_kinematics`]): the sphere model's bound
+    /// centre, where the batch checker places it too
+    /// ([`BatchChecker::bound_centres`](crate::collision::batch::BatchChecker::bound_centres));
+    /// the link's origin where it has no sphere model.
     pub fn centres(&self, poses: &[Pose], out: &mut [[f64; 3]]) {
         for ((o, pose), ball) in out.iter_mut().zip(poses).zip(&self.ball) {
             let c = ball.map_or([0.0; 3], |(c, _)| c);
@@ -189,23 +196,23 @@ pub struct Step {
 impl Step {
     /// Writes into `out` (one per link) how far any point of each link strays along the
     /// motion from where it is at the nearer end (the start up to the midpoint, the end after
-    /// it), `ends` the links' [`Sweep::centres`] at the motion's two states: see the module
-    /// docs; at most half the structural bound.
+    /// it), `ends` the links' [`Sweep::centres`] at the motion's two states (or the batch
+    /// checker's, in `f32`): see the module docs; at most half the structural bound.
     pub fn half_motion(&self, ends: (&[[f64; 3]], &[[f64; 3]]), out: &mut [f64]) {
         let chords = ends.0.iter().zip(ends.1);
         for (o, ((h, rest), (c0, c1))) in out
             .iter_mut()
             .zip(self.half_structural.iter().zip(&self.rest).zip(chords))
         {
-            let chord = (Vector3::from(*c1) - Vector3::from(*c0)).norm();
+            let chord = (Vector3::from(*c1) - Vector3::from(*c0)).norm() + CENTRE_SLACK;
             *o = h.min(0.5 * chord + rest);
         }
     }
 }
 
-/// A ball holding two balls (centre, radius): the larger one's centre, grown as needed.
-fn enclosing(a: ([f64; 3], f64), b: ([f64; 3], f64)) -> ([f64; 3], f64) {
-    let ((c, r), (e, re)) = if a.1 >= b.1 { (a, b) } else { (b, a) };
+/// A ball centred on `a`'s centre holding balls `a` and `b` (centre, radius).
+fn enclosing(a: ([f64; 3], f64), (e, re): ([f64; 3], f64)) -> ([f64; 3], f64) {
+    let (c, r) = a;
     let gap = (Vector3::from(e) - Vector3::from(c)).norm();
     (c, r.max(gap + re))
 }

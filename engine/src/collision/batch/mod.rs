@@ -656,6 +656,27 @@ impl BatchChecker {
         (self.batches, self.remembered)
     }
 
+    /// Writes into `out` (one per link) each link's sphere-model bound centre at eight
+    /// configurations given per variable (as [`BatchChecker::may_collide`] takes them); links
+    /// without a sphere model are left as they are.
+    pub fn bound_centres(&mut self, lanes: &[F8], out: &mut [[F8; 3]]) {
+        self.lanes[..self.dof].copy_from_slice(&lanes[..self.dof]);
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: the CPU has AVX2 (checked at construction).
+            unsafe { self.pose_links_avx2() };
+        } else {
+            self.pose_links();
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        self.pose_links();
+        for (l, o) in out.iter_mut().enumerate().take(self.bound.len()) {
+            if let Some((c, _)) = self.bound[l] {
+                *o = self.poses[self.frame[l]].apply_const_on(c, self.avx2);
+            }
+        }
+    }
+
     /// Checks eight configurations given per variable (`lanes[j]` holds variable `j` of each).
     pub fn may_collide(&mut self, lanes: &[F8]) -> bool {
         self.lanes[..self.dof].copy_from_slice(&lanes[..self.dof]);
@@ -726,6 +747,13 @@ impl BatchChecker {
     #[target_feature(enable = "avx2,fma")]
     unsafe fn check_avx2(&mut self, edge: Option<(&[usize; LANES], usize)>) -> bool {
         self.check(edge)
+    }
+
+    /// [`BatchChecker::pose_links`] compiled for AVX2 and FMA.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn pose_links_avx2(&mut self) {
+        self.pose_links();
     }
 
     #[inline(always)]
