@@ -59,7 +59,8 @@ pub(crate) struct Certified {
     /// A segment's margins (one per link).
     half: Vec<f64>,
     known: FxHashMap<u64, Known>,
-    /// Per known state, per link: its bound ball's centre ([`Sweep::centres`]).
+    /// Per known state, per link: its bound ball's centre, placed in the batch checker's lanes
+    /// ([`BatchChecker::bound_centres`]).
     centres: Vec<[f64; 3]>,
     segments: Vec<(u64, u64)>,
     next: Vec<(u64, u64)>,
