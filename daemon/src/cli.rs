@@ -133,6 +133,10 @@ pub struct PlanArgs {
     /// Write the timed trajectory as a MoveIt RobotTrajectory YAML.
     #[arg(long)]
     pub trajectory_out: Option<PathBuf>,
+    /// Check the returned path at its states only, not certify it clear between them (as
+    /// the daemon's `planner.certify = false`).
+    #[arg(long)]
+    pub no_certify: bool,
 }
 
 #[derive(Debug, Args)]

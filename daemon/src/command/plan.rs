@@ -47,6 +47,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<ExitCode> {
             seed: args.seed,
             time_limit: Duration::from_secs_f64(time_limit),
             simplify: !args.no_simplify,
+            certify: !args.no_certify,
             timing,
             ..Default::default()
         },
@@ -82,6 +83,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<ExitCode> {
                         "waypoint_times": t.waypoint_times,
                     })),
                     "total_ms": total_ms,
+                    "certified": !args.no_certify,
                     "stats": {
                         "iterations": s.iterations, "tree_nodes": s.tree_nodes,
                         "config_checks": s.config_checks, "motion_checks": s.motion_checks,
@@ -91,6 +93,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<ExitCode> {
                         "other_ms": s.other_s() * 1e3, "simplify_ms": s.simplify_s * 1e3,
                         "length_before": s.length_before, "length_after": s.length_after,
                         "timing_ms": s.timing_s * 1e3,
+                        "uncertified": s.uncertified, "refined": s.refined,
                     }
                 });
                 println!("{v}");
@@ -108,6 +111,12 @@ pub fn run(args: PlanArgs) -> anyhow::Result<ExitCode> {
                     "length: {:.3} before simplification, {:.3} after",
                     s.length_before, s.length_after
                 );
+                if !args.no_certify {
+                    println!(
+                        "certified clear between its states ({} segments left uncertified, checked 32 times finer)",
+                        s.uncertified
+                    );
+                }
                 let names: Vec<&str> = robot.variables().iter().map(|v| v.name.as_str()).collect();
                 println!("joints: {}", names.join(" "));
                 for (i, q) in res.path.iter().enumerate() {

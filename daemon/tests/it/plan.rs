@@ -23,6 +23,28 @@ fn plan_prints_a_solved_path() {
     assert_eq!(path[0][0].as_f64(), Some(0.1));
 }
 
+/// `ember plan` certifies the returned path between its states unless told not to; a path
+/// that grazes nothing comes back the same either way.
+#[test]
+fn plan_certifies_unless_told_not_to() {
+    let run = |extra: &[&str]| {
+        let mut args = vec!["plan", "--json", "--no-trajectory"];
+        let (scene, request) = (fixture("scene.yaml"), fixture("request_joint.yaml"));
+        args.extend(["--scene", &scene, "--request", &request]);
+        args.extend(extra);
+        crate::json_output(&ember(&args))
+    };
+    let (certified, plain) = (run(&[]), run(&["--no-certify"]));
+    assert_eq!(
+        (&certified["status"], &plain["status"]),
+        (&"solved".into(), &"solved".into())
+    );
+    assert_eq!(certified["certified"], true);
+    assert_eq!(plain["certified"], false);
+    assert!(certified["stats"]["uncertified"].is_u64(), "{certified}");
+    assert_eq!(certified["path"], plain["path"]);
+}
+
 #[test]
 fn plan_prints_and_exports_the_timed_trajectory() {
     let dir = std::env::temp_dir().join(format!("ember-traj-{}", std::process::id()));
