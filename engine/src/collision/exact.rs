@@ -493,9 +493,9 @@ impl<'a> ExactChecker<'a> {
                 }
             }
         }
+        let links = names.len();
         for &(a, b) in pairs {
             let (a_at, b_at) = ((a, self.bounds[a]), (b, self.bounds[b]));
-            let links = names.len();
             let gap = (margin(a) + margin(b)).min(
                 self.pair_margins
                     .get(a * links + b)
