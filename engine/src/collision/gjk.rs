@@ -38,7 +38,9 @@ pub enum Convex {
         /// Radius.
         r: f64,
     },
-    /// Convex hull of these points (coordinates in three arrays, scanned in lanes).
+    /// Convex hull of these points (coordinates in three arrays of equal length, a multiple
+    /// of [`HULL_LANES`], scanned four at a time; [`Convex::hull`] pads them by repeating the
+    /// first point).
     Hull {
         /// x of each point.
         x: Vec<f64>,
@@ -73,14 +75,28 @@ impl Convex {
             });
         }
         if let Some(c) = shape.as_convex_polyhedron() {
-            let points = c.points();
-            return Some(Convex::Hull {
-                x: points.iter().map(|p| p.x as f64).collect(),
-                y: points.iter().map(|p| p.y as f64).collect(),
-                z: points.iter().map(|p| p.z as f64).collect(),
-            });
+            return Some(Convex::hull(c.points().iter().map(|&p| v(p))));
         }
         None
+    }
+
+    /// The convex hull of `points` (not empty), their coordinates padded to a multiple of
+    /// [`HULL_LANES`] by repeating the first point (the first at a maximum wins, so the
+    /// repeats are never chosen).
+    pub fn hull(points: impl IntoIterator<Item = V>) -> Convex {
+        let (mut x, mut y, mut z) = (Vec::new(), Vec::new(), Vec::new());
+        for p in points {
+            x.push(p.x);
+            y.push(p.y);
+            z.push(p.z);
+        }
+        assert!(!x.is_empty(), "a hull has points");
+        while x.len() % HULL_LANES != 0 {
+            x.push(x[0]);
+            y.push(y[0]);
+            z.push(z[0]);
+        }
+        Convex::Hull { x, y, z }
     }
 
     /// Distance from `p` (in the shape's frame) to the shape, 0 inside it, in closed form;
@@ -140,21 +156,103 @@ impl Convex {
                 V::new(x, h.copysign(d.y), z)
             }
             Convex::Hull { x, y, z } => {
-                // One pass over the coordinate arrays; the first point at the maximum wins.
-                let n = x.len();
-                let (x, y, z) = (&x[..n], &y[..n], &z[..n]);
-                let (mut best, mut at) = (f64::NEG_INFINITY, 0);
-                for i in 0..n {
-                    let v = x[i] * d.x + y[i] * d.y + z[i] * d.z;
-                    if v > best {
-                        best = v;
-                        at = i;
-                    }
-                }
+                let at = farthest(x, y, z, d);
                 V::new(x[at], y[at], z[at])
             }
         }
     }
+}
+
+/// Points a hull's support scans at once (`f64` lanes of an AVX2 register).
+pub const HULL_LANES: usize = 4;
+
+/// The index of the point of `(x, y, z)` farthest along `d`: the first at the maximum of
+/// `x·d.x + y·d.y + z·d.z` (each product rounded, then summed left to right). Four points at
+/// a time where AVX2 is available, with the same roundings and the same choice as
+/// [`farthest_scalar`].
+#[inline]
+fn farthest(x: &[f64], y: &[f64], z: &[f64], d: &V) -> usize {
+    #[cfg(target_arch = "x86_64")]
+    if x.len() >= HULL_LANES && std::is_x86_feature_detected!("avx2") {
+        // SAFETY: AVX2 was detected just now.
+        return unsafe { farthest_avx2(x, y, z, d) };
+    }
+    farthest_scalar(x, y, z, d)
+}
+
+/// [`farthest`], one point at a time (the fallback and the lanes' test oracle).
+fn farthest_scalar(x: &[f64], y: &[f64], z: &[f64], d: &V) -> usize {
+    let n = x.len();
+    let (x, y, z) = (&x[..n], &y[..n], &z[..n]);
+    let (mut best, mut at) = (f64::NEG_INFINITY, 0);
+    for i in 0..n {
+        let v = x[i] * d.x + y[i] * d.y + z[i] * d.z;
+        if v > best {
+            best = v;
+            at = i;
+        }
+    }
+    at
+}
+
+/// [`farthest`] in AVX2 lanes: each lane keeps its first maximum over the points `i ≡ lane
+/// (mod 4)`; the lanes' greatest wins, the lowest index among equals. Points past the last
+/// whole group of four are scanned one at a time.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn farthest_avx2(x: &[f64], y: &[f64], z: &[f64], d: &V) -> usize {
+    use std::arch::x86_64::*;
+    let n = x.len().min(y.len()).min(z.len());
+    let whole = n - n % HULL_LANES;
+    let (dx, dy, dz) = (
+        _mm256_set1_pd(d.x),
+        _mm256_set1_pd(d.y),
+        _mm256_set1_pd(d.z),
+    );
+    let mut best = _mm256_set1_pd(f64::NEG_INFINITY);
+    let mut best_at = _mm256_setzero_pd();
+    let mut at = _mm256_setr_pd(0.0, 1.0, 2.0, 3.0);
+    let step = _mm256_set1_pd(HULL_LANES as f64);
+    let mut i = 0;
+    while i < whole {
+        // SAFETY: i + 4 <= whole <= the length of each array.
+        let (px, py, pz) = unsafe {
+            (
+                _mm256_loadu_pd(x.as_ptr().add(i)),
+                _mm256_loadu_pd(y.as_ptr().add(i)),
+                _mm256_loadu_pd(z.as_ptr().add(i)),
+            )
+        };
+        let v = _mm256_add_pd(
+            _mm256_add_pd(_mm256_mul_pd(px, dx), _mm256_mul_pd(py, dy)),
+            _mm256_mul_pd(pz, dz),
+        );
+        let more = _mm256_cmp_pd::<_CMP_GT_OQ>(v, best);
+        best = _mm256_blendv_pd(best, v, more);
+        best_at = _mm256_blendv_pd(best_at, at, more);
+        at = _mm256_add_pd(at, step);
+        i += HULL_LANES;
+    }
+    let (mut values, mut indices) = ([0.0; HULL_LANES], [0.0; HULL_LANES]);
+    // SAFETY: both arrays hold four f64.
+    unsafe {
+        _mm256_storeu_pd(values.as_mut_ptr(), best);
+        _mm256_storeu_pd(indices.as_mut_ptr(), best_at);
+    }
+    let (mut top, mut top_at) = (f64::NEG_INFINITY, 0);
+    for k in 0..HULL_LANES {
+        let index = indices[k] as usize;
+        if values[k] > top || (values[k] == top && index < top_at) {
+            (top, top_at) = (values[k], index);
+        }
+    }
+    for j in whole..n {
+        let v = x[j] * d.x + y[j] * d.y + z[j] * d.z;
+        if v > top {
+            (top, top_at) = (v, j);
+        }
+    }
+    top_at
 }
 
 /// A shape placed in the world.
@@ -388,6 +486,33 @@ mod tests {
 
     fn at(x: f64, y: f64, z: f64) -> Pose {
         Pose::from_parts(Translation3::new(x, y, z), UnitQuaternion::identity())
+    }
+
+    proptest::proptest! {
+        /// The hull support's lanes choose the point the scalar scan chooses, ties (repeated
+        /// and coplanar points) and lengths that are not a multiple of four included.
+        #[test]
+        fn farthest_in_lanes_is_the_scalar_choice(
+            points in proptest::collection::vec((-3i8..=3, -3i8..=3, -3i8..=3), 1..40),
+            d in (-2i8..=2, -2i8..=2, -2i8..=2),
+            scale in 0.01f64..2.0,
+        ) {
+            let coord = |k: fn(&(i8, i8, i8)) -> i8| -> Vec<f64> {
+                points.iter().map(|p| k(p) as f64 * scale).collect()
+            };
+            let (x, y, z) = (coord(|p| p.0), coord(|p| p.1), coord(|p| p.2));
+            let d = V::new(d.0 as f64, d.1 as f64 * 0.5, d.2 as f64 * 0.25);
+            let scalar = farthest_scalar(&x, &y, &z, &d);
+            proptest::prop_assert_eq!(farthest(&x, &y, &z, &d), scalar);
+            #[cfg(target_arch = "x86_64")]
+            if std::is_x86_feature_detected!("avx2") {
+                proptest::prop_assert_eq!(unsafe { farthest_avx2(&x, &y, &z, &d) }, scalar);
+            }
+            // Padded as the exact model pads them, the same point.
+            let hull = Convex::hull((0..x.len()).map(|i| V::new(x[i], y[i], z[i])));
+            let i = scalar;
+            proptest::prop_assert_eq!(hull.support(&d), V::new(x[i], y[i], z[i]));
+        }
     }
 
     /// The closed-form distance from a point agrees with GJK's distance to a point-sized ball,
