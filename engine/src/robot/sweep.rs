@@ -45,6 +45,8 @@ pub struct Sweep {
     revolute: Vec<bool>,
     /// `moves[j * links + l]`: variable `j` moves link `l` (drives a joint on its chain).
     moves: Vec<bool>,
+    /// Per variable: the links it moves, and those it does not.
+    split: Vec<(Vec<usize>, Vec<usize>)>,
 }
 
 impl Sweep {
@@ -94,12 +96,16 @@ impl Sweep {
                 revolute[variable] = false;
             }
         }
+        let split = (0..dof)
+            .map(|j| (0..n).partition(|&l| moves[j * n + l]))
+            .collect();
         Sweep {
             links: n,
             reach,
             ball,
             revolute,
             moves,
+            split,
         }
     }
 
@@ -171,11 +177,13 @@ impl Sweep {
             if d == 0.0 {
                 continue;
             }
-            let (moves, reach) = (&self.moves[j * n..][..n], &self.reach[j * n..][..n]);
-            for a in (0..n).filter(|&a| moves[a]) {
-                for b in (0..n).filter(|&b| !moves[b]) {
-                    out[a * n + b] += d * reach[a];
-                    out[b * n + a] += d * reach[a];
+            let reach = &self.reach[j * n..][..n];
+            let (moved, still) = &self.split[j];
+            for &a in moved {
+                let r = d * reach[a];
+                for &b in still {
+                    out[a * n + b] += r;
+                    out[b * n + a] += r;
                 }
             }
         }

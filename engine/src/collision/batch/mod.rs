@@ -120,6 +120,8 @@ pub struct BatchChecker {
     bound_box: Vec<Option<([f32; 3], [f32; 3])>>,
     /// Per link: its clusters.
     link_clusters: Vec<std::ops::Range<usize>>,
+    /// Per link: the range of its spheres (its clusters' together).
+    link_spheres: Vec<std::ops::Range<usize>>,
     /// Per cluster: centre, radius (+ margin), spheres.
     cluster: Vec<([f32; 3], f32, std::ops::Range<usize>)>,
     /// Per sphere: centre (link frame), radius (+ margin).
@@ -304,6 +306,16 @@ impl BatchChecker {
             .collect();
         let n_links = links.len();
         assert!(pairs.iter().all(|p| p.a.max(p.b) < n_links));
+        debug_assert!((0..n_links).all(|l| {
+            let (clusters, spheres) = (&model.link_clusters[l], &model.ranges[l]);
+            clusters.is_empty()
+                || (cluster[clusters.start].2.start == spheres.start
+                    && cluster[clusters.end - 1].2.end == spheres.end
+                    && clusters
+                        .clone()
+                        .skip(1)
+                        .all(|c| cluster[c - 1].2.end == cluster[c].2.start))
+        }));
         let hiding = Hiding::for_robot(robot, &bound, place);
         // Links come parents first (`Robot::links`), so a pose is computed after its parent's.
         debug_assert!((0..n_links).all(|l| links[l].parent.is_none_or(|p| frame[p] < l)));
@@ -319,6 +331,7 @@ impl BatchChecker {
             bound,
             bound_box,
             link_clusters: model.link_clusters.clone(),
+            link_spheres: model.ranges.clone(),
             cluster,
             sphere,
             cluster_offset,
@@ -511,11 +524,19 @@ impl BatchChecker {
             if let (Some(b), Some((lo, hi))) = (&mut self.bound_box[l], base.bound_box[l]) {
                 *b = (lo.map(|v| v - m), hi.map(|v| v + m));
             }
-            for ci in self.link_clusters[l].clone() {
-                self.cluster[ci].1 = base.cluster[ci] + m;
-                for s in self.cluster[ci].2.clone() {
-                    self.sphere[s].1 = base.sphere[s] + m;
-                }
+            // A link's clusters, and its spheres, are consecutive.
+            let (clusters, spheres) = (self.link_clusters[l].clone(), self.link_spheres[l].clone());
+            for (c, &r) in self.cluster[clusters.clone()]
+                .iter_mut()
+                .zip(&base.cluster[clusters])
+            {
+                c.1 = r + m;
+            }
+            for (s, &r) in self.sphere[spheres.clone()]
+                .iter_mut()
+                .zip(&base.sphere[spheres])
+            {
+                s.1 = r + m;
             }
         }
         let links = self.bound.len();
