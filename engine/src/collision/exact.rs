@@ -387,6 +387,13 @@ impl<'a> ExactChecker<'a> {
     /// What `q` touches first (an object, the map, or another link), or `None` when it is
     /// free. `q` must have the robot's DOF.
     pub fn contact(&mut self, q: &[f64]) -> Option<Contact> {
+        self.contact_of(q, true, true)
+    }
+
+    /// [`ExactChecker::contact`] of some parts only: the links against the objects and the
+    /// map when `env`, the links against each other when `pairs` (for a caller that knows
+    /// the rest clear: the sphere lanes' [`StateFlags`](super::batch::StateFlags)).
+    pub fn contact_of(&mut self, q: &[f64], env: bool, pairs: bool) -> Option<Contact> {
         self.checks += 1;
         if let Some(c) = &self.static_contact {
             return Some(c.clone());
@@ -395,7 +402,9 @@ impl<'a> ExactChecker<'a> {
         let rest = self.rest;
         // The links that never move keep the bounds placed at rest.
         self.place_bounds(rest.moving_links.iter().copied());
-        self.first_contact(&rest.moving_links, &rest.moving_pairs)
+        let links: &[usize] = if env { &rest.moving_links } else { &[] };
+        let pairs: &[(usize, usize)] = if pairs { &rest.moving_pairs } else { &[] };
+        self.first_contact(links, pairs)
     }
 
     /// True when `q` is free in the exact geometry.

@@ -13,7 +13,8 @@
 //! resolution) are checked so, the links grown by those margins (a state's the larger of its
 //! two segments'): eight states at a time in the sphere lanes first (grown by the eight
 //! states' largest), alone where a batch is flagged, then on the exact geometry with the
-//! state's own margins. A segment whose ends are not both clear is halved, and its halves
+//! state's own margins (only the links against the obstacles, or only against each other,
+//! when the lanes flag only that). A segment whose ends are not both clear is halved, and its halves
 //! asked again with their own (smaller) margins, down to [`DEPTH`] halvings (segments 32
 //! times shorter); there its states are checked without a margin, as a discrete walk would
 //! check them, and a contact found between the validation's states is returned. Only what is
@@ -342,10 +343,12 @@ impl Certified {
             for &(k, slot) in chunk {
                 let clear = batch_clear || {
                     robot.interpolate(a, b, k as f64 / finest as f64, &mut self.q);
-                    !batch.state_may_collide(&self.q) || {
+                    // The exact geometry is asked only what the lanes flag.
+                    let flags = batch.state_flags(&self.q);
+                    !flags.any() || {
                         let own = &self.margins[slot * links..(slot + 1) * links];
                         exact.set_margins(own, &self.pair_margins);
-                        exact.is_valid(&self.q)
+                        exact.contact_of(&self.q, flags.env, flags.pairs).is_none()
                     }
                 };
                 if clear {

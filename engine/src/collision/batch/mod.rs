@@ -68,6 +68,22 @@ const STATIC: u32 = u32::MAX;
 /// Added to every radius (metres): the batch checker errs towards contact.
 pub const MARGIN: f32 = 1e-4;
 
+/// What the sphere lanes find of one configuration ([`BatchChecker::state_flags`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StateFlags {
+    /// Some link may touch an object or the map.
+    pub env: bool,
+    /// Some pair of links may touch each other (or was not asked, as `env` was set).
+    pub pairs: bool,
+}
+
+impl StateFlags {
+    /// Either test flagged it.
+    pub fn any(self) -> bool {
+        self.env || self.pairs
+    }
+}
+
 /// A self-collision pair: links `a` and `b`, their bound radii, and the square of their sum
 /// (the bounds overlap where their centres are nearer than that; `f32`, as [`overlap`]).
 #[derive(Clone, Copy)]
@@ -488,6 +504,28 @@ impl BatchChecker {
         self.alone(|sut| sut.lanes_may_collide(None))
     }
 
+    /// Which tests flag configuration `q`: the environment (objects, the map and, when
+    /// validating, obstacles that could hide inside a link), and the self pairs (asked only
+    /// when the environment's test clears; flagged otherwise). A part not flagged is clear:
+    /// every link of the environment, or every pair of links of each other.
+    pub fn state_flags(&mut self, q: &[f64]) -> StateFlags {
+        for (lane, &v) in self.lanes.iter_mut().zip(q) {
+            *lane = F8::splat(v as f32);
+        }
+        self.live = 1;
+        #[cfg(target_arch = "x86_64")]
+        let flags = if self.avx2 {
+            // SAFETY: the CPU has AVX2 (checked at construction).
+            unsafe { self.flags_avx2() }
+        } else {
+            self.flags()
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let flags = self.flags();
+        self.live = ALL_LANES;
+        flags
+    }
+
     /// True when configuration `q` surely touches something: the balls inside the geometry
     /// ([`SphereModel::inner`](crate::robot::spheres::SphereModel::inner), less the margin),
     /// down the same hierarchy, touch an object, the map or each other.
@@ -779,6 +817,39 @@ impl BatchChecker {
 
     #[inline(always)]
     fn check(&mut self, edge: Option<(&[usize; LANES], usize)>) -> bool {
+        self.begin(edge);
+        // The environment places each moving link's bound as it reaches it (most batches end
+        // at the first link or two); the self pairs need them all, placed by then.
+        self.env_contact() || self.self_contact() || (self.validating && self.may_hide())
+    }
+
+    /// [`BatchChecker::state_flags`]'s checks, compiled for AVX2 and FMA.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn flags_avx2(&mut self) -> StateFlags {
+        self.flags()
+    }
+
+    /// The checks of [`BatchChecker::check`], the self pairs' to its end when the
+    /// environment's clears.
+    #[inline(always)]
+    fn flags(&mut self) -> StateFlags {
+        self.begin(None);
+        if self.env_contact() {
+            return StateFlags {
+                env: true,
+                pairs: true,
+            };
+        }
+        let pairs = self.self_contact();
+        let env = self.validating && self.may_hide();
+        StateFlags { env, pairs }
+    }
+
+    /// A batch's kinematics, before its tests: the lanes from the edge, if given, a new
+    /// epoch for the placements, the links posed.
+    #[inline(always)]
+    fn begin(&mut self, edge: Option<(&[usize; LANES], usize)>) {
         if let Some(edge) = edge {
             self.fill_lanes(edge);
         }
@@ -794,9 +865,6 @@ impl BatchChecker {
             self.epoch = 1;
         }
         self.pose_links();
-        // The environment places each moving link's bound as it reaches it (most batches end
-        // at the first link or two); the self pairs need them all, placed by then.
-        self.env_contact() || self.self_contact() || (self.validating && self.may_hide())
     }
 
     #[inline(always)]
@@ -1284,6 +1352,46 @@ mod tests {
                 hits > 0 && hits < runs,
                 "{name}: {hits} of {runs} in contact"
             );
+        }
+    }
+
+    /// A state's flags agree with the full check (flagged exactly when it is), in AVX2 and
+    /// portable code alike, and what they leave unflagged is clear on the exact geometry:
+    /// with no environment flag no link touches an object, with no pair flag no two links
+    /// touch, on random states of both robots among random boxes (where all three outcomes
+    /// occur: nothing flagged, the pairs alone, the environment, whose flag stands for the
+    /// pairs too).
+    #[test]
+    fn unflagged_parts_are_clear_in_the_exact_geometry() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(13);
+        for name in ["fetch", "panda"] {
+            let robot = Robot::builtin(name).unwrap();
+            let env = six_boxes(&mut rng);
+            let mut sut = BatchChecker::new(&robot, &env);
+            let mut full = sut.clone();
+            let mut portable = sut.clone();
+            portable.avx2 = false;
+            let mut exact = crate::collision::exact::ExactChecker::new(&robot, &env);
+            let mut q = vec![0.0; robot.dof()];
+            let mut seen = std::collections::HashSet::new();
+            for _ in 0..1500 {
+                robot.sample_uniform(&mut rng, &mut q);
+                let flags = sut.state_flags(&q);
+                assert_eq!(flags, portable.state_flags(&q), "{name}");
+                assert_eq!(flags.any(), full.state_may_collide(&q), "{name}");
+                if !flags.env {
+                    assert!(exact.contact_of(&q, true, false).is_none(), "{name}: {q:?}");
+                }
+                if !flags.pairs {
+                    assert!(exact.contact_of(&q, false, true).is_none(), "{name}: {q:?}");
+                }
+                seen.insert((flags.env, flags.pairs));
+            }
+            assert!(
+                !seen.contains(&(true, false)),
+                "{name}: the pairs not asked"
+            );
+            assert_eq!(seen.len(), 3, "{name}: flags seen {seen:?}");
         }
     }
 
