@@ -1355,6 +1355,17 @@ mod tests {
         }
     }
 
+    /// A checker under test, one to compare it with, and a copy running the portable code.
+    fn three_checkers(
+        robot: &Robot,
+        env: &Environment,
+    ) -> (BatchChecker, BatchChecker, BatchChecker) {
+        let sut = BatchChecker::new(robot, env);
+        let mut portable = sut.clone();
+        portable.avx2 = false;
+        (sut.clone(), sut, portable)
+    }
+
     /// A state's flags agree with the full check (flagged exactly when it is), in AVX2 and
     /// portable code alike, and what they leave unflagged is clear on the exact geometry:
     /// with no environment flag no link touches an object, with no pair flag no two links
@@ -1367,10 +1378,7 @@ mod tests {
         for name in ["fetch", "panda"] {
             let robot = Robot::builtin(name).unwrap();
             let env = six_boxes(&mut rng);
-            let mut sut = BatchChecker::new(&robot, &env);
-            let mut full = sut.clone();
-            let mut portable = sut.clone();
-            portable.avx2 = false;
+            let (mut sut, mut full, mut portable) = three_checkers(&robot, &env);
             let mut exact = crate::collision::exact::ExactChecker::new(&robot, &env);
             let mut q = vec![0.0; robot.dof()];
             let mut seen = std::collections::HashSet::new();
@@ -1404,10 +1412,7 @@ mod tests {
         for name in ["fetch", "panda"] {
             let robot = Robot::builtin(name).unwrap();
             let env = six_boxes(&mut rng);
-            let mut sut = BatchChecker::new(&robot, &env);
-            let mut full = sut.clone();
-            let mut portable = sut.clone();
-            portable.avx2 = false;
+            let (mut sut, mut full, mut portable) = three_checkers(&robot, &env);
             let state = |rng: &mut rand::rngs::StdRng| {
                 let mut q = vec![0.0; robot.dof()];
                 robot.sample_uniform(rng, &mut q);
