@@ -373,10 +373,16 @@ impl<'a> ExactChecker<'a> {
     /// the sum); empty slices restore plain contact. Links that never move are decided once
     /// ([`ExactChecker::static_contact`]), without a margin.
     pub fn set_margins(&mut self, margins: &[f64], pairs: &[f64]) {
-        self.margins.clear();
-        self.margins.extend(margins.iter().map(|m| m.max(0.0)));
+        self.set_link_margins(margins);
         self.pair_margins.clear();
         self.pair_margins.extend(pairs.iter().map(|m| m.max(0.0)));
+    }
+
+    /// [`ExactChecker::set_margins`] of the links alone, the pairs' caps kept (a caller
+    /// whose caps change less often than its links' margins).
+    pub fn set_link_margins(&mut self, margins: &[f64]) {
+        self.margins.clear();
+        self.margins.extend(margins.iter().map(|m| m.max(0.0)));
     }
 
     /// Configurations checked so far.

@@ -309,6 +309,7 @@ impl Certified {
         let links = self.links;
         // The pairs' margins are new at each level.
         self.inflated.clear();
+        exact.set_margins(&[], &self.pair_margins);
         for chunk in self.asked.chunks(LANES) {
             fill_lanes(
                 robot,
@@ -347,7 +348,7 @@ impl Certified {
                     let flags = batch.state_flags(&self.q);
                     !flags.any() || {
                         let own = &self.margins[slot * links..(slot + 1) * links];
-                        exact.set_margins(own, &self.pair_margins);
+                        exact.set_link_margins(own);
                         exact.contact_of(&self.q, flags.env, flags.pairs).is_none()
                     }
                 };
