@@ -108,7 +108,7 @@ struct LaneGrid {
     bdims: [u32; 3],
     /// A stored unit, metres.
     step: f32,
-    /// Half diagonal of a cell plus the queries' slack, metres.
+    /// The queries' slack, metres.
     reach: f32,
 }
 
