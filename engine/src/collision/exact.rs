@@ -148,6 +148,8 @@ struct ExactObject {
 struct ObjectBoxes {
     lo: [Vec<f64>; 3],
     hi: [Vec<f64>; 3],
+    /// Read only where the AVX2 paths are compiled (x86-64).
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     avx2: bool,
 }
 

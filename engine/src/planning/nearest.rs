@@ -71,6 +71,8 @@ pub struct NearestIndex {
     /// Per joint: the range values are stored in, [-π, π) on continuous joints, else all.
     inside_lo: Vec<f64>,
     inside_hi: Vec<f64>,
+    /// Read only where the AVX2 paths are compiled (x86-64).
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     avx2: bool,
 }
 

@@ -23,6 +23,8 @@ pub struct PlannerRng {
     scalar: Xoshiro256PlusPlus,
     /// The streams' states, word-major: `lanes[w][k]` is word `w` of stream `k`.
     lanes: [[u64; STREAMS]; 4],
+    /// Read only where the AVX2 paths are compiled (x86-64).
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     avx2: bool,
 }
 

@@ -3,6 +3,7 @@
 //! saturated at a padding, stored in one byte per cell.
 
 use super::VoxelKey;
+#[cfg(target_arch = "x86_64")]
 use crate::collision::batch::lanes::has_avx2;
 
 /// A squared distance in the transform, in quarter cells squared (`4·d²`, a whole number as
