@@ -14,7 +14,7 @@
 //! of links that never move relative to each other are checked once, at construction.
 
 use super::checker::Contact;
-use super::gjk::{extent_along, Convex, Placed};
+use super::gjk::{extent_along, Convex, Placed, Witness};
 use super::parry::{convex_within_along, exact_shape, shared_geometry, TOUCH};
 use crate::robot::{Link, Robot};
 use crate::world::Environment;
@@ -142,6 +142,10 @@ struct ExactObject {
     hi: Vector3<f64>,
 }
 
+/// Added to a part's bounding radius where its ball alone clears it of an object (metres):
+/// above the rounding of the ball's placement and the contact tolerance.
+const BALL_SLACK: f64 = 1e-6;
+
 /// The world boxes of the first 64 objects, each corner coordinate in an array padded to a
 /// multiple of four with empty boxes: the links' broad phase, four objects per AVX2
 /// instruction when the CPU has it.
@@ -248,9 +252,9 @@ pub struct ExactChecker<'a> {
     /// (placed once per check: a link meets several others).
     bounds: Vec<Vector3<f64>>,
     /// Per pair of a part and an object (part-major), then per pair of parts: the last
-    /// direction that separated them or GJK ended on, tried first the next time (see
-    /// [`gjk::separated_along`](super::gjk::separated_along)).
-    axes: Vec<Vector3<f64>>,
+    /// direction that separated them or GJK ended on, and their last support points, tried
+    /// first the next time (see [`gjk::separated_along`](super::gjk::separated_along)).
+    witnesses: Vec<Witness>,
     objects: Vec<ExactObject>,
     /// The first 64 objects' boxes, for the links' broad phase.
     boxes: ObjectBoxes,
@@ -339,7 +343,7 @@ impl<'a> ExactChecker<'a> {
             env,
             poses: rest.poses.clone(),
             bounds: vec![Vector3::zeros(); rest.poses.len()],
-            axes: vec![Vector3::zeros(); parts * (objects.len() + parts)],
+            witnesses: vec![Witness::default(); parts * (objects.len() + parts)],
             boxes: ObjectBoxes::new(&objects),
             objects,
             rest,
@@ -453,24 +457,25 @@ impl<'a> ExactChecker<'a> {
     /// The first contact of `links` with the world, else of `pairs` with each other, at the
     /// link poses and bounds held.
     fn first_contact(&mut self, links: &[usize], pairs: &[(usize, usize)]) -> Option<Contact> {
-        let mut axes = std::mem::take(&mut self.axes);
-        let found = self.contact_among(links, pairs, &mut axes);
-        self.axes = axes;
+        let mut witnesses = std::mem::take(&mut self.witnesses);
+        let found = self.contact_among(links, pairs, &mut witnesses);
+        self.witnesses = witnesses;
         found
     }
 
     /// [`ExactChecker::first_contact`] with the link bounds placed, trying and updating the
-    /// pairs' separating directions `axes` (see [`ExactChecker::axes`]).
+    /// pairs' `witnesses` (see [`ExactChecker::witnesses`]).
     fn contact_among(
         &self,
         links: &[usize],
         pairs: &[(usize, usize)],
-        axes: &mut [Vector3<f64>],
+        witnesses: &mut [Witness],
     ) -> Option<Contact> {
         let model = self.robot.exact_model();
         let names = self.robot.links();
         let n_objects = self.objects.len();
-        let (object_axes, pair_axes) = axes.split_at_mut(model.part_count() * n_objects);
+        let (object_witnesses, pair_witnesses) =
+            witnesses.split_at_mut(model.part_count() * n_objects);
         let out2 = |obj: &ExactObject, c: &Vector3<f64>| box_gap2(|k| (obj.lo[k], obj.hi[k]), c);
         let margin = |l: usize| self.margins.get(l).copied().unwrap_or(0.0);
         for &li in links {
@@ -488,14 +493,22 @@ impl<'a> ExactChecker<'a> {
                 // The part's pose is composed only for the exact tests.
                 let pose = || self.poses[li] * part.origin;
                 let c = (self.poses[li] * Point3::from(part.center)).coords;
-                let axes = &mut object_axes[pi * n_objects..][..n_objects];
+                let witnesses = &mut object_witnesses[pi * n_objects..][..n_objects];
                 let r2 = (part.radius + m) * (part.radius + m);
-                for ((o, obj), axis) in self.objects.iter().enumerate().zip(axes) {
+                for ((o, obj), witness) in self.objects.iter().enumerate().zip(witnesses) {
                     if (o < 64 && near & (1 << o) == 0) || out2(obj, &c) > r2 {
                         continue;
                     }
+                    // The part's ball against the object's own shape (a turned object's
+                    // world box is loose): a ball clear of it by more than the margin holds
+                    // a part clear of it too, without the GJK.
+                    let local = obj.pose.inverse_transform_point(&Point3::from(c));
+                    let clear = |gap: f64| gap > part.radius + m + BALL_SLACK;
+                    if obj.convex.point_gap(&local.coords).is_some_and(clear) {
+                        continue;
+                    }
                     let (convex, at) = (&obj.convex, &obj.pose);
-                    if convex_within_along(&part.convex, &pose(), convex, at, m, axis) {
+                    if convex_within_along(&part.convex, &pose(), convex, at, m, witness) {
                         return Some(Contact::Object {
                             link: names[li].name.clone(),
                             object: self.env.objects()[o].name.clone(),
@@ -520,7 +533,7 @@ impl<'a> ExactChecker<'a> {
                     .unwrap_or(f64::INFINITY),
             );
             if bounds_meet(model, a_at, b_at, gap)
-                && parts_touch(model, &self.poses, (a, b), gap, Some(&mut *pair_axes))
+                && parts_touch(model, &self.poses, (a, b), gap, Some(&mut *pair_witnesses))
             {
                 return Some(Contact::SelfCollision {
                     link_a: names[a].name.clone(),
@@ -561,7 +574,7 @@ impl<'a> ExactChecker<'a> {
         // The last separating axis found, unit, with the part's extent along it and a voxel's
         // along it: neighbouring voxels (a shelf's face) mostly lie beyond the same plane,
         // which then settles each in a dot product instead of GJK.
-        let mut axis = Vector3::zeros();
+        let mut witness = Witness::default();
         let mut slab: Option<(Vector3<f64>, (f64, f64), f64)> = None;
         map.any_occupied_in(lo, hi, |v| {
             if !(0..3).all(|k| v[k] >= lo[k] && v[k] <= hi[k]) || map.voxel_gap2(center, v) > reach2
@@ -575,9 +588,10 @@ impl<'a> ExactChecker<'a> {
                 }
             }
             let at = Pose::translation(v[0], v[1], v[2]);
-            if convex_within_along(&part.convex, pose, &voxel, &at, gap, &mut axis) {
+            if convex_within_along(&part.convex, pose, &voxel, &at, gap, &mut witness) {
                 return true;
             }
+            let axis = witness.axis;
             let len = axis.norm();
             slab = (len > 0.0).then(|| {
                 let n = axis / len;
@@ -641,14 +655,15 @@ fn bounds_meet(
 const PLACED_PARTS: usize = 32;
 
 /// True when a part of link `a` comes within `gap` of a part of link `b` (at link poses
-/// `poses`), part pairs screened by their bounding spheres; `axes`, when given, holds the part
-/// pairs' last separating directions (part-major, one row per part) to try first and update.
+/// `poses`), part pairs screened by their bounding spheres; `witnesses`, when given, holds the
+/// part pairs' last separating directions and support points (part-major, one row per part)
+/// to try first and update.
 fn parts_touch(
     model: &ExactModel,
     poses: &[Pose],
     (a, b): (usize, usize),
     gap: f64,
-    mut axes: Option<&mut [Vector3<f64>]>,
+    mut witnesses: Option<&mut [Witness]>,
 ) -> bool {
     let parts = model.part_count();
     // `b`'s part centres placed once (not once per part of `a`: a spherized link has dozens of
@@ -673,9 +688,9 @@ fn parts_touch(
                 continue;
             }
             let pose_a = pose_a.get_or_insert_with(|| poses[a] * pa.origin);
-            let mut fresh = Vector3::zeros();
-            let axis = match axes.as_deref_mut() {
-                Some(axes) => &mut axes[ia * parts + ib],
+            let mut fresh = Witness::default();
+            let witness = match witnesses.as_deref_mut() {
+                Some(witnesses) => &mut witnesses[ia * parts + ib],
                 None => &mut fresh,
             };
             if convex_within_along(
@@ -684,7 +699,7 @@ fn parts_touch(
                 &pb.convex,
                 &(poses[b] * pb.origin),
                 gap,
-                axis,
+                witness,
             ) {
                 return true;
             }

@@ -48,7 +48,61 @@ pub enum Convex {
         y: Vec<f64>,
         /// z of each point.
         z: Vec<f64>,
+        /// Its edges, when known: the support then climbs from a hint instead of scanning.
+        edges: HullEdges,
     },
+}
+
+/// A hull's edges as each point's neighbours (the points' graph): `next[first[i]..first[i +
+/// 1]]` lists point `i`'s. Empty when the edges are not known.
+#[derive(Debug, Clone, Default)]
+pub struct HullEdges {
+    first: Vec<u32>,
+    next: Vec<u32>,
+}
+
+impl HullEdges {
+    /// The graph of `points` points and these `edges` (pairs of point numbers); empty (not
+    /// known) when an edge names no point or a point has no edge.
+    fn new(points: usize, edges: &[[u32; 2]]) -> HullEdges {
+        let mut degree = vec![0u32; points];
+        for e in edges {
+            for &v in e {
+                match degree.get_mut(v as usize) {
+                    Some(d) => *d += 1,
+                    None => return HullEdges::default(),
+                }
+            }
+        }
+        if points < 2 || degree.contains(&0) {
+            return HullEdges::default();
+        }
+        let mut first = Vec::with_capacity(points + 1);
+        first.push(0);
+        for d in &degree {
+            first.push(first.last().expect("starts at 0") + d);
+        }
+        let mut fill = first[..points].to_vec();
+        let mut next = vec![0; *first.last().expect("one per point and one") as usize];
+        for &[a, b] in edges {
+            for (from, to) in [(a, b), (b, a)] {
+                next[fill[from as usize] as usize] = to;
+                fill[from as usize] += 1;
+            }
+        }
+        HullEdges { first, next }
+    }
+}
+
+/// Where a pair's support points were last found: one hint per shape (a point of each hull,
+/// see [`Convex::support_from`]), with the pair's last separating direction (see
+/// [`separated_along`]).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Witness {
+    /// The last direction (zero: none yet).
+    pub axis: V,
+    /// The last support point of each shape (its number in a hull; 0 for other shapes).
+    pub hints: [u32; 2],
 }
 
 impl Convex {
@@ -75,7 +129,11 @@ impl Convex {
             });
         }
         if let Some(c) = shape.as_convex_polyhedron() {
-            return Some(Convex::hull(c.points().iter().map(|&p| v(p))));
+            let edges: Vec<[u32; 2]> = c.edges().iter().map(|e| e.vertices).collect();
+            return Some(Convex::hull_with_edges(
+                c.points().iter().map(|&p| v(p)),
+                &edges,
+            ));
         }
         None
     }
@@ -84,6 +142,13 @@ impl Convex {
     /// [`HULL_LANES`] by repeating the first point (the first at a maximum wins, so the
     /// repeats are never chosen).
     pub fn hull(points: impl IntoIterator<Item = V>) -> Convex {
+        Convex::hull_with_edges(points, &[])
+    }
+
+    /// [`Convex::hull`] of points that are the hull's vertices, with the hull's edges
+    /// (pairs of point numbers; all of them, or none): its supports then climb along the
+    /// edges ([`Convex::support_from`]).
+    pub fn hull_with_edges(points: impl IntoIterator<Item = V>, edges: &[[u32; 2]]) -> Convex {
         let (mut x, mut y, mut z) = (Vec::new(), Vec::new(), Vec::new());
         for p in points {
             x.push(p.x);
@@ -91,12 +156,27 @@ impl Convex {
             z.push(p.z);
         }
         assert!(!x.is_empty(), "a hull has points");
+        let edges = HullEdges::new(x.len(), edges);
         while x.len() % HULL_LANES != 0 {
             x.push(x[0]);
             y.push(y[0]);
             z.push(z[0]);
         }
-        Convex::Hull { x, y, z }
+        Convex::Hull { x, y, z, edges }
+    }
+
+    /// [`Convex::support`], from a hint: on a hull whose edges are known, the climb from
+    /// point `*hint` along the edges to a point no neighbour of which lies farther along `d`
+    /// (on a convex polytope, a farthest point), left in `*hint`; a nearby direction's last
+    /// answer makes it a few steps. Other shapes leave the hint alone.
+    pub fn support_from(&self, d: &V, hint: &mut u32) -> V {
+        match self {
+            Convex::Hull { x, y, z, edges } if !edges.first.is_empty() => {
+                let at = climb(x, y, z, edges, d, hint);
+                V::new(x[at], y[at], z[at])
+            }
+            _ => self.support(d),
+        }
     }
 
     /// Distance from `p` (in the shape's frame) to the shape, 0 inside it, in closed form;
@@ -155,12 +235,35 @@ impl Convex {
                 };
                 V::new(x, h.copysign(d.y), z)
             }
-            Convex::Hull { x, y, z } => {
+            Convex::Hull { x, y, z, .. } => {
                 let at = farthest(x, y, z, d);
                 V::new(x[at], y[at], z[at])
             }
         }
     }
+}
+
+/// [`Convex::support_from`]'s climb on a hull's points along its edges.
+fn climb(x: &[f64], y: &[f64], z: &[f64], edges: &HullEdges, d: &V, hint: &mut u32) -> usize {
+    let along = |i: usize| x[i] * d.x + y[i] * d.y + z[i] * d.z;
+    let points = edges.first.len() - 1;
+    let mut at = (*hint as usize).min(points - 1);
+    let mut best = along(at);
+    loop {
+        let from = at;
+        let (start, end) = (edges.first[from] as usize, edges.first[from + 1] as usize);
+        for &j in &edges.next[start..end] {
+            let v = along(j as usize);
+            if v > best {
+                (best, at) = (v, j as usize);
+            }
+        }
+        if at == from {
+            break;
+        }
+    }
+    *hint = at as u32;
+    at
 }
 
 /// Points a hull's support scans at once (`f64` lanes of an AVX2 register).
@@ -279,9 +382,9 @@ impl<'a> Frame<'a> {
         }
     }
 
-    fn support(&self, d: &V) -> V {
+    fn support(&self, d: &V, hint: &mut u32) -> V {
         let local = self.rotation.tr_mul(d);
-        self.rotation * self.shape.support(&local) + self.translation
+        self.rotation * self.shape.support_from(&local, hint) + self.translation
     }
 }
 
@@ -291,35 +394,41 @@ const EPS: f64 = 1e-10;
 
 /// The distance between `a` and `b`; 0 when they touch or overlap.
 pub fn distance(a: &Placed, b: &Placed) -> f64 {
-    run(&Frame::of(a), &Frame::of(b), f64::INFINITY).0
+    run(&Frame::of(a), &Frame::of(b), f64::INFINITY, &mut [0; 2]).0
 }
 
 /// The least and greatest of `n · x` over the points `x` of `a`.
 pub fn extent_along(a: &Placed, n: &V) -> (f64, f64) {
     let f = Frame::of(a);
-    (n.dot(&f.support(&-n)), n.dot(&f.support(n)))
+    let mut hint = 0;
+    (
+        n.dot(&f.support(&-n, &mut hint)),
+        n.dot(&f.support(n, &mut hint)),
+    )
 }
 
 /// True when `a` and `b` are more than `gap` apart (stops as soon as that is certain).
 pub fn separated(a: &Placed, b: &Placed, gap: f64) -> bool {
-    separated_along(a, b, gap, &mut V::zeros())
+    separated_along(a, b, gap, &mut Witness::default())
 }
 
-/// [`separated`], trying `axis` first: when the shapes' extents along it are more than `gap`
-/// apart, that settles it with one support point each. Otherwise GJK decides, and `axis` is
-/// left holding its last direction. Any axis gives a true answer; the last one of the same
-/// pair a small motion ago (the states along an edge) usually settles the next.
-pub fn separated_along(a: &Placed, b: &Placed, gap: f64, axis: &mut V) -> bool {
+/// [`separated`], trying the witness's axis first: when the shapes' extents along it are more
+/// than `gap` apart, that settles it with one support point each. Otherwise GJK decides, and
+/// the axis is left holding its last direction. Any axis gives a true answer; the last one of
+/// the same pair a small motion ago (the states along an edge) usually settles the next. The
+/// supports climb from the witness's hints and leave theirs.
+pub fn separated_along(a: &Placed, b: &Placed, gap: f64, witness: &mut Witness) -> bool {
     let (fa, fb) = (Frame::of(a), Frame::of(b));
+    let Witness { axis, hints } = witness;
     let n2 = axis.norm_squared();
     if n2 > 0.0 {
         // The point of A − B least far along the axis bounds the distance from below.
-        let w = fa.support(&-*axis) - fb.support(axis);
+        let w = fa.support(&-*axis, &mut hints[0]) - fb.support(axis, &mut hints[1]);
         if axis.dot(&w) > gap * n2.sqrt() {
             return true;
         }
     }
-    let (lower, v) = run(&fa, &fb, gap);
+    let (lower, v) = run(&fa, &fb, gap, hints);
     *axis = v;
     lower > gap
 }
@@ -343,10 +452,12 @@ impl Simplex {
 }
 
 /// GJK; returns a lower bound of the distance, or as soon as the bound exceeds `stop`, with
-/// the last direction (the point of A − B nearest the origin found).
-fn run(fa: &Frame, fb: &Frame, stop: f64) -> (f64, V) {
+/// the last direction (the point of A − B nearest the origin found). The supports climb from
+/// `hints` (one per shape) and leave theirs.
+fn run(fa: &Frame, fb: &Frame, stop: f64, hints: &mut [u32; 2]) -> (f64, V) {
     // A point of the Minkowski difference A − B in direction d.
-    let support = |d: &V| fa.support(d) - fb.support(&-d);
+    let [ha, hb] = hints;
+    let mut support = |d: &V| fa.support(d, ha) - fb.support(&-d, hb);
     let start = fa.translation - fb.translation;
     let mut v = support(&if start.norm() > 0.0 { -start } else { V::x() });
     let mut simplex = Simplex::of(&[v]);
@@ -515,6 +626,64 @@ mod tests {
         }
     }
 
+    /// On hulls of random point clouds (parry's, with their edges), the climb from any hint
+    /// ends at a point as far along the direction as the scan's, and the scan is kept where
+    /// the edges are not known or leave a point out.
+    #[test]
+    fn climbs_reach_the_farthest_point() {
+        use parry3d::shape::ConvexPolyhedron;
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand::rngs::StdRng::seed_from_u64(8);
+        let mut climbed = 0;
+        for _ in 0..60 {
+            let n = rng.random_range(4..200);
+            let points: Vec<parry3d::math::Vector> = (0..n)
+                .map(|_| {
+                    let mut v = || rng.random_range(-0.3f32..0.3);
+                    parry3d::math::Vector::new(v(), v() * 0.2, v() * 2.0)
+                })
+                .collect();
+            let Some(poly) = ConvexPolyhedron::from_convex_hull(&points) else {
+                continue;
+            };
+            let hull = Convex::from_parry(&poly).expect("a hull");
+            let Convex::Hull { x, y, z, edges } = &hull else {
+                panic!("a hull");
+            };
+            assert!(
+                !edges.first.is_empty(),
+                "parry's hulls come with their edges"
+            );
+            let count = edges.first.len() - 1;
+            for _ in 0..50 {
+                let d = V::new(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                );
+                let mut hint = rng.random_range(0..count as u32);
+                let got = hull.support_from(&d, &mut hint);
+                let best = farthest_scalar(x, y, z, &d);
+                let top = V::new(x[best], y[best], z[best]).dot(&d);
+                assert!(got.dot(&d) >= top - 1e-12, "{} against {top}", got.dot(&d));
+                assert_eq!(
+                    got,
+                    V::new(x[hint as usize], y[hint as usize], z[hint as usize])
+                );
+                climbed += 1;
+            }
+        }
+        assert!(climbed > 2000);
+        // A point without an edge (or an edge past the points): no climbing, the scan.
+        let pts = [V::zeros(), V::x(), V::y(), V::z()];
+        let lonely = Convex::hull_with_edges(pts, &[[0, 1], [1, 2], [2, 0]]);
+        let past = Convex::hull_with_edges(pts, &[[0, 1], [1, 2], [2, 3], [3, 9]]);
+        for hull in [lonely, past] {
+            let mut hint = 0;
+            assert_eq!(hull.support_from(&V::z(), &mut hint), V::z());
+        }
+    }
+
     /// The closed-form distance from a point agrees with GJK's distance to a point-sized ball,
     /// for every kind but hulls, at random poses.
     #[test]
@@ -552,11 +721,7 @@ mod tests {
             }
         }
         assert!(shapes[0].point_gap(&V::zeros()) == Some(0.0));
-        let hull = Convex::Hull {
-            x: vec![0.0; 4],
-            y: vec![0.0; 4],
-            z: vec![0.0; 4],
-        };
+        let hull = Convex::hull([V::zeros(); 4]);
         assert!(hull.point_gap(&V::zeros()).is_none());
     }
 

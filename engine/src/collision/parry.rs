@@ -159,19 +159,19 @@ pub(crate) const TOUCH: f64 = 1e-9;
 /// True when two convex shapes at world poses touch or overlap.
 #[cfg(test)]
 pub(crate) fn convex_touch(a: &Convex, pose_a: &Pose, b: &Convex, pose_b: &Pose) -> bool {
-    convex_within_along(a, pose_a, b, pose_b, 0.0, &mut Vector3::zeros())
+    convex_within_along(a, pose_a, b, pose_b, 0.0, &mut gjk::Witness::default())
 }
 
 /// True when two convex shapes at world poses come within `gap` metres of each other (touch
-/// or overlap at 0), trying the separating `axis` of an earlier answer first and leaving this
-/// answer's (see [`gjk::separated_along`]).
+/// or overlap at 0), trying the separating axis and support points of an earlier answer
+/// (`witness`) first and leaving this answer's (see [`gjk::separated_along`]).
 pub(crate) fn convex_within_along(
     a: &Convex,
     pose_a: &Pose,
     b: &Convex,
     pose_b: &Pose,
     gap: f64,
-    axis: &mut Vector3<f64>,
+    witness: &mut gjk::Witness,
 ) -> bool {
     // A ball against anything but a hull: the distance from its centre, in closed form (a
     // spherized robot's parts are all balls).
@@ -196,7 +196,7 @@ pub(crate) fn convex_within_along(
             pose: pose_b,
         },
     );
-    !gjk::separated_along(&a, &b, TOUCH + gap, axis)
+    !gjk::separated_along(&a, &b, TOUCH + gap, witness)
 }
 
 /// True when two parry shapes at world poses touch or overlap.

@@ -122,7 +122,9 @@ impl Certified {
     /// The first contact between the states of `path`'s edges at `resolution` (each already
     /// found free, by the discrete walk): see the module docs. `batch` is in validation mode
     /// (obstacles that could hide inside a link flag its states, as they do there); it is
-    /// left with its radii as built, and `exact` without margins.
+    /// left with its radii as built, and `exact` without margins. (Kept out of line: profiles
+    /// name it.)
+    #[inline(never)]
     pub(crate) fn path_contact(
         &mut self,
         robot: &Robot,
