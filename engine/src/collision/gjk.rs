@@ -451,9 +451,10 @@ impl Simplex {
     }
 }
 
-/// GJK; returns a lower bound of the distance, or as soon as the bound exceeds `stop`, with
-/// the last direction (the point of A − B nearest the origin found). The supports climb from
-/// `hints` (one per shape) and leave theirs.
+/// GJK; returns a lower bound of the distance, or as soon as the bound exceeds `stop` or the
+/// distance is known to be at most `stop`, with the last direction (the point of A − B
+/// nearest the origin found). The supports climb from `hints` (one per shape) and leave
+/// theirs.
 fn run(fa: &Frame, fb: &Frame, stop: f64, hints: &mut [u32; 2]) -> (f64, V) {
     // A point of the Minkowski difference A − B in direction d.
     let [ha, hb] = hints;
@@ -466,6 +467,11 @@ fn run(fa: &Frame, fb: &Frame, stop: f64, hints: &mut [u32; 2]) -> (f64, V) {
         let vv = v.norm_squared();
         if vv <= 1e-30 {
             return (0.0, v);
+        }
+        // |v| bounds the distance from above: within a finite `stop`, the bound below cannot
+        // exceed it.
+        if stop.is_finite() && vv <= stop * stop {
+            return (lower.max(0.0), v);
         }
         let w = support(&-v);
         // v·w / |v| bounds the distance from below.
