@@ -33,8 +33,8 @@ use rustc_hash::FxHashMap;
 /// `2^DEPTH` times shorter than the validation's resolution).
 pub const DEPTH: u32 = 5;
 
-/// A batch of states is checked with the links grown by as much as the last batch where that
-/// covers its margins and exceeds them by at most a quarter or this much (metres).
+/// A batch of states is checked with each link grown by as much as for the last batch where
+/// that covers its margin and exceeds it by at most a quarter or this much (metres).
 const REGROW_SLACK: f32 = 5e-4;
 
 /// What each state of an edge is known to be, by its place on the finest grid.
@@ -328,19 +328,20 @@ impl Certified {
                     *m32 = m32.max(m as f32);
                 }
             }
-            // Grown again only where the last growth falls short or is much too large: growing
-            // every sphere costs about as much as checking the batch.
-            let fits = self.inflated.len() == links
-                && self
-                    .inflated
-                    .iter()
-                    .zip(&self.margins32)
-                    .all(|(&have, &need)| {
-                        need <= have && have <= need + (0.25 * need).max(REGROW_SLACK)
-                    });
-            if !fits {
-                batch.inflate(&self.margins32, &self.pair_margins32);
+            // Each link grown again only where its last growth falls short or is much too
+            // large: growing every sphere costs about as much as checking the batch.
+            let mut changed = self.inflated.len() != links;
+            if changed {
                 self.inflated.clone_from(&self.margins32);
+            }
+            for (have, &need) in self.inflated.iter_mut().zip(&self.margins32) {
+                if !(need <= *have && *have <= need + (0.25 * need).max(REGROW_SLACK)) {
+                    *have = need;
+                    changed = true;
+                }
+            }
+            if changed {
+                batch.inflate(&self.inflated, &self.pair_margins32);
             }
             let batch_clear = !batch.may_collide(&self.lanes);
             for &(k, slot) in chunk {

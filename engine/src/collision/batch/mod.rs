@@ -207,6 +207,8 @@ struct Radii {
     cluster: Vec<f32>,
     sphere: Vec<f32>,
     pairs: Vec<SelfPair>,
+    /// Per link: how much its balls are grown now (0: as built).
+    grown: Vec<f32>,
 }
 
 impl BatchChecker {
@@ -542,7 +544,7 @@ impl BatchChecker {
     /// `a` and `b` within the sum of theirs of each other, or within `pairs[a * links + b]`
     /// where that is less (the spheres' final test; `pairs` empty: the sum).
     /// [`BatchChecker::deflate`] undoes it. Links that never move are placed once, so they are
-    /// not grown.
+    /// not grown; a link grown by as much already is left as it is.
     pub fn inflate(&mut self, by: &[f32], pairs: &[f32]) {
         let base = self.uninflated.get_or_insert_with(|| {
             Box::new(Radii {
@@ -551,11 +553,16 @@ impl BatchChecker {
                 cluster: self.cluster.iter().map(|c| c.1).collect(),
                 sphere: self.sphere.iter().map(|s| s.1).collect(),
                 pairs: self.pairs.clone(),
+                grown: vec![0.0; self.bound.len()],
             })
         });
         let grow = |l: usize| by.get(l).copied().unwrap_or(0.0).max(0.0);
         for &l in &self.moving {
             let m = grow(l);
+            if base.grown[l] == m {
+                continue;
+            }
+            base.grown[l] = m;
             if let (Some(b), Some(base)) = (&mut self.bound[l], base.bound[l]) {
                 b.1 = base.1 + m;
             }
@@ -591,9 +598,10 @@ impl BatchChecker {
 
     /// The radii as built again, after [`BatchChecker::inflate`].
     pub fn deflate(&mut self) {
-        let Some(base) = self.uninflated.as_deref() else {
+        let Some(base) = self.uninflated.as_deref_mut() else {
             return;
         };
+        base.grown.fill(0.0);
         self.bound.clone_from(&base.bound);
         self.bound_box.clone_from(&base.bound_box);
         for (c, r) in self.cluster.iter_mut().zip(&base.cluster) {
@@ -1401,6 +1409,49 @@ mod tests {
             );
             assert_eq!(seen.len(), 3, "{name}: flags seen {seen:?}");
         }
+    }
+
+    /// Grown from an earlier growth (links grown by as much already left alone), the balls,
+    /// boxes and pairs are those a growth from the radii as built gives, and deflating gives
+    /// back the radii as built.
+    #[test]
+    fn growth_from_an_earlier_growth_is_a_fresh_growth() {
+        let robot = Robot::builtin("fetch").unwrap();
+        let env = six_boxes(&mut rand::rngs::StdRng::seed_from_u64(3));
+        let built = BatchChecker::new(&robot, &env);
+        let links = robot.links().len();
+        let radii = |c: &BatchChecker| {
+            let pairs: Vec<_> = c
+                .pairs
+                .iter()
+                .map(|p| (p.ra, p.rb, p.reach2, p.adjust))
+                .collect();
+            let spheres: Vec<f32> = c.sphere.iter().map(|s| s.1).collect();
+            let clusters: Vec<f32> = c.cluster.iter().map(|s| s.1).collect();
+            (
+                c.bound.clone(),
+                c.bound_box.clone(),
+                clusters,
+                spheres,
+                pairs,
+            )
+        };
+        let first: Vec<f32> = (0..links).map(|l| 0.001 * l as f32).collect();
+        let mut second = first.clone();
+        second[links - 1] += 0.01;
+        second[links / 2] = 0.0;
+        let caps = vec![0.004; links * links];
+        let mut sut = built.clone();
+        sut.inflate(&first, &[]);
+        sut.inflate(&second, &caps);
+        let mut fresh = built.clone();
+        fresh.inflate(&second, &caps);
+        assert!(radii(&sut) == radii(&fresh));
+        assert!(radii(&sut) != radii(&built));
+        sut.deflate();
+        assert!(radii(&sut) == radii(&built));
+        sut.inflate(&second, &caps);
+        assert!(radii(&sut) == radii(&fresh));
     }
 
     /// A state the screen flags is one the full check finds in contact, in AVX2 and
