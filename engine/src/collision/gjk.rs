@@ -382,9 +382,15 @@ impl<'a> Frame<'a> {
         }
     }
 
-    fn support(&self, d: &V, hint: &mut u32) -> V {
+    /// The support point along `d`, climbing from `hint` where given ([`Convex::support_from`]),
+    /// else scanning.
+    fn support(&self, d: &V, hint: Option<&mut u32>) -> V {
         let local = self.rotation.tr_mul(d);
-        self.rotation * self.shape.support_from(&local, hint) + self.translation
+        let p = match hint {
+            Some(hint) => self.shape.support_from(&local, hint),
+            None => self.shape.support(&local),
+        };
+        self.rotation * p + self.translation
     }
 }
 
@@ -399,12 +405,9 @@ pub fn distance(a: &Placed, b: &Placed) -> f64 {
 
 /// The least and greatest of `n · x` over the points `x` of `a`.
 pub fn extent_along(a: &Placed, n: &V) -> (f64, f64) {
+    // Scanned: a climb from one end of the hull to the other crosses all of it.
     let f = Frame::of(a);
-    let mut hint = 0;
-    (
-        n.dot(&f.support(&-n, &mut hint)),
-        n.dot(&f.support(n, &mut hint)),
-    )
+    (n.dot(&f.support(&-n, None)), n.dot(&f.support(n, None)))
 }
 
 /// True when `a` and `b` are more than `gap` apart (stops as soon as that is certain).
@@ -423,7 +426,8 @@ pub fn separated_along(a: &Placed, b: &Placed, gap: f64, witness: &mut Witness) 
     let n2 = axis.norm_squared();
     if n2 > 0.0 {
         // The point of A − B least far along the axis bounds the distance from below.
-        let w = fa.support(&-*axis, &mut hints[0]) - fb.support(axis, &mut hints[1]);
+        let [ha, hb] = hints;
+        let w = fa.support(&-*axis, Some(ha)) - fb.support(axis, Some(hb));
         if axis.dot(&w) > gap * n2.sqrt() {
             return true;
         }
@@ -458,7 +462,7 @@ impl Simplex {
 fn run(fa: &Frame, fb: &Frame, stop: f64, hints: &mut [u32; 2]) -> (f64, V) {
     // A point of the Minkowski difference A − B in direction d.
     let [ha, hb] = hints;
-    let mut support = |d: &V| fa.support(d, ha) - fb.support(&-d, hb);
+    let mut support = |d: &V| fa.support(d, Some(&mut *ha)) - fb.support(&-d, Some(&mut *hb));
     let start = fa.translation - fb.translation;
     let mut v = support(&if start.norm() > 0.0 { -start } else { V::x() });
     let mut simplex = Simplex::of(&[v]);
