@@ -12,11 +12,11 @@
 //! margin from each other). Each edge's states (at the validation's
 //! resolution) are checked so, the links grown by those margins (a state's the larger of its
 //! two segments'): eight states at a time in the sphere lanes first (grown by the eight
-//! states' largest), alone where a batch is flagged, then on the exact geometry with the
-//! state's own margins (only the links against the obstacles, or only against each other,
-//! when the lanes flag only that). A segment whose ends are not both clear is halved, and its halves
-//! asked again with their own (smaller) margins, down to [`DEPTH`] halvings (segments 32
-//! times shorter); there its states are checked without a margin, as a discrete walk would
+//! states' largest; one walk gives each state's own flags, [`BatchChecker::lane_flags`]), then
+//! the flagged states on the exact geometry with their own margins (only the links against
+//! the obstacles, or only against each other, when the lanes flag only that). A segment
+//! whose ends are not both clear is halved, and its halves asked again with their own
+//! (smaller) margins, down to [`DEPTH`] halvings (segments 32 times shorter); there its states are checked without a margin, as a discrete walk would
 //! check them, and a contact found between the validation's states is returned. Only what is
 //! left at that depth (a state closer than a hair to something, where a motion could also
 //! just touch it) is not certified; [`Certified::uncertified`] counts those segments.
@@ -297,9 +297,9 @@ impl Certified {
     }
 
     /// Decides the states `self.asked` (places on the finest grid of `finest` steps from `a`
-    /// to `b`) at their margins: eight at a time in the lanes (grown by the eight's largest),
-    /// a flagged batch's states alone, and those the lanes still flag on the exact geometry
-    /// with their own.
+    /// to `b`) at their margins: eight at a time in the lanes (grown by the eight's largest,
+    /// each state's flags from one walk), and those the lanes flag on the exact geometry with
+    /// their own.
     fn clear_states(
         &mut self,
         robot: &Robot,
@@ -343,17 +343,16 @@ impl Certified {
             if changed {
                 batch.inflate(&self.inflated, &self.pair_margins32);
             }
-            let batch_clear = !batch.may_collide(&self.lanes);
-            for &(k, slot) in chunk {
-                let clear = batch_clear || {
+            // Each state's flags from one walk of the eight; the exact geometry is asked only
+            // what the lanes flag.
+            let flags = batch.lane_flags(&self.lanes);
+            for (i, &(k, slot)) in chunk.iter().enumerate() {
+                let flags = flags.lane(i);
+                let clear = !flags.any() || {
                     robot.interpolate(a, b, k as f64 / finest as f64, &mut self.q);
-                    // The exact geometry is asked only what the lanes flag.
-                    let flags = batch.state_flags(&self.q);
-                    !flags.any() || {
-                        let own = &self.margins[slot * links..(slot + 1) * links];
-                        exact.set_link_margins(own);
-                        exact.contact_of(&self.q, flags.env, flags.pairs).is_none()
-                    }
+                    let own = &self.margins[slot * links..(slot + 1) * links];
+                    exact.set_link_margins(own);
+                    exact.contact_of(&self.q, flags.env, flags.pairs).is_none()
                 };
                 if clear {
                     let known = self.known.get_mut(&k).expect("known");

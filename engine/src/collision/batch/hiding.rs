@@ -10,7 +10,9 @@
 //! wholly inside an obstacle touches spheres: they are centred inside the link.)
 
 use super::lanes::F8;
-use super::{overlap, unclear_lanes, BatchChecker, ObjectKind, SelfPair, MARGIN};
+use super::{
+    counted, overlap, overlap_lanes, unclear_lanes, BatchChecker, ObjectKind, SelfPair, MARGIN,
+};
 use crate::collision::Shape;
 use crate::robot::spheres::pockets::LinkPockets;
 use crate::robot::{Geometry, LinkShape, Robot};
@@ -173,23 +175,23 @@ impl BatchChecker {
     /// spheres (see the module docs). Asked only of batches the spheres clear, every moving
     /// link's bound placed.
     #[inline(never)]
-    pub(super) fn may_hide(&mut self) -> bool {
+    pub(super) fn may_hide<const E: bool>(&mut self) -> bool {
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: the CPU has AVX2 (checked at construction).
-            return unsafe { self.may_hide_avx2() };
+            return unsafe { self.may_hide_avx2::<E>() };
         }
-        self.may_hide_lanes()
+        self.may_hide_lanes::<E>()
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn may_hide_avx2(&mut self) -> bool {
-        self.may_hide_lanes()
+    unsafe fn may_hide_avx2<const E: bool>(&mut self) -> bool {
+        self.may_hide_lanes::<E>()
     }
 
     #[inline(always)]
-    fn may_hide_lanes(&mut self) -> bool {
+    fn may_hide_lanes<const E: bool>(&mut self) -> bool {
         let h = &self.hiding;
         // Set whenever validating (by `validate(true)`); without it, nothing is ruled out.
         let Some(env) = &h.in_env else {
@@ -197,7 +199,12 @@ impl BatchChecker {
         };
         for &(l, o) in &env.objects {
             let p = self.objects[o].t.map(F8::splat);
-            if self.within_bound(l, p) {
+            if self.within_bound(l, p)
+                && (!E || {
+                    let lanes = self.within_lanes(l, p);
+                    counted(&mut self.hit, self.live, lanes)
+                })
+            {
                 return true;
             }
         }
@@ -206,8 +213,11 @@ impl BatchChecker {
         if let (Some(map), Some(room)) = (&self.map, &env.voxels) {
             for &l in &self.moving {
                 let (_, r) = self.bound[l].unwrap_or_default();
-                if room[l] && unclear_lanes(map.clearance(), self.bounds[l], r, self.live) != 0 {
-                    return true;
+                if room[l] {
+                    let lanes = unclear_lanes(map.clearance(), self.bounds[l], r, self.live);
+                    if lanes != 0 && (!E || counted(&mut self.hit, self.live, lanes)) {
+                        return true;
+                    }
                 }
             }
         }
@@ -217,7 +227,12 @@ impl BatchChecker {
                 continue;
             }
             let p = self.poses[self.frame[x]].apply_const_on(h.points[i].0, self.avx2);
-            if self.within_bound(y, p) {
+            if self.within_bound(y, p)
+                && (!E || {
+                    let lanes = self.within_lanes(y, p);
+                    counted(&mut self.hit, self.live, lanes)
+                })
+            {
                 return true;
             }
         }
@@ -230,6 +245,14 @@ impl BatchChecker {
     fn within_bound(&self, l: usize, p: [F8; 3]) -> bool {
         let (_, r) = self.bound[l].unwrap_or_default();
         overlap(p, MARGIN, self.bounds[l], r) && self.box_reached(l, p, MARGIN)
+    }
+
+    /// The lanes (bits) where [`BatchChecker::within_bound`] finds the point within both the
+    /// bound ball and the box.
+    #[inline(always)]
+    fn within_lanes(&self, l: usize, p: [F8; 3]) -> u32 {
+        let (_, r) = self.bound[l].unwrap_or_default();
+        overlap_lanes(p, MARGIN, self.bounds[l], r) & self.box_lanes(l, p, MARGIN)
     }
 }
 

@@ -19,7 +19,11 @@
 //! collision; near the exact fallback's anchors each state of a flagged batch is checked
 //! again alone, and only a state still flagged, whose balls inside the geometry
 //! ([`BatchChecker::state_surely_collides`]) touch nothing, goes to the exact checker
-//! ([`Validity`](crate::planning::validity::Validity) does). An occupancy map is one more
+//! ([`Validity`](crate::planning::validity::Validity) does). Where every state's verdict is
+//! wanted (certification), [`BatchChecker::lane_flags`] gives each lane's flags from one
+//! placement of the eight: a contact sets its lanes aside, and the walk goes on for the others
+//! (the same tests, compiled a second time through their `E` parameter, so that the
+//! early-ending walk keeps its source). An occupancy map is one more
 //! obstacle down the same hierarchy: its [`Clearance`] grid clears most balls in one read per
 //! lane, and a sphere it cannot clear is decided by the map's voxels, lane by lane.
 //!
@@ -44,7 +48,9 @@ use crate::world::Environment;
 use hiding::Hiding;
 use kinematics::Joint8;
 use lanes::{boxes_overlapping, edge_fractions, edge_lanes, has_avx2, Pose8, ALL_LANES, F8, LANES};
-use objects::{penetrated, penetrates, penetrating_lanes, Object8, ObjectKind};
+use objects::{
+    penetrated, penetrates, penetrating_lanes, penetrating_lanes_of, Object8, ObjectKind,
+};
 use std::sync::Arc;
 
 /// Environment contacts remembered and tried first in the next batch (see
@@ -82,6 +88,40 @@ impl StateFlags {
     pub fn any(self) -> bool {
         self.env || self.pairs
     }
+}
+
+/// What the sphere lanes find of eight configurations, lane by lane
+/// ([`BatchChecker::lane_flags`]): bit `i` of each mask is lane `i`'s [`StateFlags`] field.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct LaneFlags {
+    /// The lanes where some link may touch an object or the map.
+    pub env: u32,
+    /// The lanes where some pair of links may touch each other (or that were not asked, as
+    /// `env` was set there).
+    pub pairs: u32,
+}
+
+impl LaneFlags {
+    /// Lane `i`'s flags.
+    pub fn lane(self, i: usize) -> StateFlags {
+        StateFlags {
+            env: self.env >> i & 1 == 1,
+            pairs: self.pairs >> i & 1 == 1,
+        }
+    }
+
+    /// Some lane is flagged.
+    pub fn any(self) -> bool {
+        self.env | self.pairs != 0
+    }
+}
+
+/// The tests [`BatchChecker::lane_flags`] walks lane by lane.
+#[derive(Clone, Copy)]
+enum Test {
+    Environment,
+    SelfPairs,
+    Hiding,
 }
 
 /// A self-collision pair: links `a` and `b`, their bound radii, and the square of their sum
@@ -191,8 +231,12 @@ pub struct BatchChecker {
     batches: u64,
     remembered: u64,
     /// The lanes that hold distinct states: all of them, but the first alone while one state
-    /// fills every lane (the map's voxels are then walked once, not eight times).
+    /// fills every lane (the map's voxels are then walked once, not eight times). In
+    /// [`BatchChecker::lane_flags`]'s walks, the lanes not yet found in contact.
     live: u32,
+    /// In [`BatchChecker::lane_flags`]'s walks (their tests' `E`), the lanes of the contacts
+    /// found: a contact counts only in the `live` lanes.
+    hit: u32,
     /// The radii as built, while [`BatchChecker::inflate`] has grown them.
     uninflated: Option<Box<Radii>>,
     avx2: bool,
@@ -374,6 +418,7 @@ impl BatchChecker {
             batches: 0,
             remembered: 0,
             live: ALL_LANES,
+            hit: 0,
             skip_recent: false,
             uninflated: None,
             lanes: vec![F8::default(); robot.dof()],
@@ -514,18 +559,28 @@ impl BatchChecker {
         for (lane, &v) in self.lanes.iter_mut().zip(q) {
             *lane = F8::splat(v as f32);
         }
-        self.live = 1;
+        self.flags_of_lanes(1).lane(0)
+    }
+
+    /// Which tests flag each of eight configurations given per variable (`lanes[j]` holds
+    /// variable `j` of each): lane by lane what [`BatchChecker::state_flags`] finds of each
+    /// alone, from one placement of the eight. A walk does not end at its first contact: the
+    /// lanes that contact is in are set aside and the walk is made again for the others,
+    /// until it finds none.
+    pub fn lane_flags(&mut self, lanes: &[F8]) -> LaneFlags {
+        self.lanes[..self.dof].copy_from_slice(&lanes[..self.dof]);
+        self.flags_of_lanes(ALL_LANES)
+    }
+
+    /// [`BatchChecker::lane_flags`] of the configurations in `self.lanes`, of which those in
+    /// `distinct` (bits) are distinct (one lane, while one state fills them all).
+    fn flags_of_lanes(&mut self, distinct: u32) -> LaneFlags {
         #[cfg(target_arch = "x86_64")]
-        let flags = if self.avx2 {
+        if self.avx2 {
             // SAFETY: the CPU has AVX2 (checked at construction).
-            unsafe { self.flags_avx2() }
-        } else {
-            self.flags()
-        };
-        #[cfg(not(target_arch = "x86_64"))]
-        let flags = self.flags();
-        self.live = ALL_LANES;
-        flags
+            return unsafe { self.flags_avx2(distinct) };
+        }
+        self.flags(distinct)
     }
 
     /// True when configuration `q` surely touches something: the balls inside the geometry
@@ -798,6 +853,7 @@ impl BatchChecker {
 
     /// Puts a contact first among those kept for screening (dropping the oldest past
     /// [`SCREEN`]).
+    #[inline(always)]
     fn keep_for_screening(&mut self, contact: (usize, usize, usize)) {
         match self.screen.iter().position(|&c| c == contact) {
             Some(k) => self.screen[..=k].rotate_right(1),
@@ -828,30 +884,61 @@ impl BatchChecker {
         self.begin(edge);
         // The environment places each moving link's bound as it reaches it (most batches end
         // at the first link or two); the self pairs need them all, placed by then.
-        self.env_contact() || self.self_contact() || (self.validating && self.may_hide())
+        self.env_contact::<false>()
+            || self.self_contact::<false>()
+            || (self.validating && self.may_hide::<false>())
     }
 
-    /// [`BatchChecker::state_flags`]'s checks, compiled for AVX2 and FMA.
+    /// [`BatchChecker::flags`] compiled for AVX2 and FMA.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn flags_avx2(&mut self) -> StateFlags {
-        self.flags()
+    unsafe fn flags_avx2(&mut self, distinct: u32) -> LaneFlags {
+        self.flags(distinct)
     }
 
-    /// The checks of [`BatchChecker::check`], the self pairs' to its end when the
-    /// environment's clears.
+    /// The checks of [`BatchChecker::check`] lane by lane, in the lanes `distinct` (bits):
+    /// the self pairs and the hiding test asked in the lanes the environment's test clears.
     #[inline(always)]
-    fn flags(&mut self) -> StateFlags {
+    fn flags(&mut self, distinct: u32) -> LaneFlags {
         self.begin(None);
-        if self.env_contact() {
-            return StateFlags {
-                env: true,
-                pairs: true,
-            };
+        let env = self.flagged(distinct, Test::Environment);
+        let pairs = env | self.flagged(distinct & !env, Test::SelfPairs);
+        let hide = match self.validating {
+            true => self.flagged(distinct & !env, Test::Hiding),
+            false => 0,
+        };
+        self.live = ALL_LANES;
+        LaneFlags {
+            env: env | hide,
+            pairs,
         }
-        let pairs = self.self_contact();
-        let env = self.validating && self.may_hide();
-        StateFlags { env, pairs }
+    }
+
+    /// The lanes of `live` where `test` finds a contact: walked again with the lanes found
+    /// set aside until it finds none. (A contact found without its lanes, as the hiding test's
+    /// "nothing ruled out", flags every lane left.)
+    #[inline(always)]
+    fn flagged(&mut self, live: u32, test: Test) -> u32 {
+        let mut found = 0;
+        self.live = live;
+        while self.live != 0 {
+            self.hit = 0;
+            let contact = match test {
+                Test::Environment => self.env_contact::<true>(),
+                Test::SelfPairs => self.self_contact::<true>(),
+                Test::Hiding => self.may_hide::<true>(),
+            };
+            if !contact {
+                break;
+            }
+            let hit = match self.hit {
+                0 => self.live,
+                hit => hit,
+            };
+            found |= hit;
+            self.live &= !hit;
+        }
+        found
     }
 
     /// A batch's kinematics, before its tests: the lanes from the edge, if given, a new
@@ -917,7 +1004,7 @@ impl BatchChecker {
     }
 
     #[inline(always)]
-    fn env_contact(&mut self) -> bool {
+    fn env_contact<const E: bool>(&mut self) -> bool {
         if self.objects.is_empty() && self.map.is_none() {
             for k in 0..self.moving.len() {
                 self.place_bound(self.moving[k]);
@@ -926,7 +1013,7 @@ impl BatchChecker {
         }
         // Moved out while the placements are written, and back: no reference count per batch.
         let map = self.map.take();
-        let hit = self.env_contact_with(map.as_deref());
+        let hit = self.env_contact_with::<E>(map.as_deref());
         self.map = map;
         hit
     }
@@ -937,7 +1024,7 @@ impl BatchChecker {
     /// and one test instead of the walk down the hierarchy. (Any sphere in contact is a
     /// contact: the order changes the cost, never the verdict.)
     #[inline(always)]
-    fn env_contact_with(&mut self, map: Option<&OccupancyMap>) -> bool {
+    fn env_contact_with<const E: bool>(&mut self, map: Option<&OccupancyMap>) -> bool {
         let grid = match map {
             Some(m) => m.clearance(),
             None => None,
@@ -953,8 +1040,23 @@ impl BatchChecker {
             self.sphere_at[s] = self.poses[self.frame[l]].apply_const_on(c, self.avx2);
             let p = self.sphere_at[s];
             let hit = match j {
-                Touched::Object(j) => penetrates(&self.objects[j], p, r),
-                Touched::Map => lanes_touch_map(map, grid, p, r, self.live),
+                Touched::Object(j) => {
+                    penetrates(&self.objects[j], p, r)
+                        && (!E
+                            || objects_counted(
+                                &mut self.hit,
+                                self.live,
+                                &self.objects[j..=j],
+                                1,
+                                p,
+                                r,
+                            ))
+                }
+                Touched::Map => {
+                    lanes_touch_map(map, grid, p, r, self.live)
+                        && (!E
+                            || map_counted(&mut self.hit, self.live, (map, grid), p, r, self.live))
+                }
             };
             if hit {
                 self.remembered += 1;
@@ -966,7 +1068,7 @@ impl BatchChecker {
         // first; all but crowded scenes have one group.
         for group in 0..self.objects.len().div_ceil(MASK_BITS).max(1) {
             let map = if group == 0 { map } else { None };
-            if self.group_contact(group, map, grid) {
+            if self.group_contact::<E>(group, map, grid) {
                 return true;
             }
         }
@@ -976,7 +1078,7 @@ impl BatchChecker {
     /// [`BatchChecker::env_contact_with`] down the hierarchy for the objects of one group
     /// and the map, if given.
     #[inline(always)]
-    fn group_contact(
+    fn group_contact<const E: bool>(
         &mut self,
         group: usize,
         map: Option<&OccupancyMap>,
@@ -1031,7 +1133,17 @@ impl BatchChecker {
                     }
                     let p = *at;
                     let hit = penetrated(&self.objects[first..end], cluster_mask, p, r);
-                    if hit != 0 {
+                    if hit != 0
+                        && (!E
+                            || objects_counted(
+                                &mut self.hit,
+                                self.live,
+                                &self.objects[first..end],
+                                hit,
+                                p,
+                                r,
+                            ))
+                    {
                         let j = first + hit.trailing_zeros() as usize;
                         self.remember((l, s, Touched::Object(j)));
                         self.keep_for_screening((l, s, j));
@@ -1041,7 +1153,10 @@ impl BatchChecker {
                         0 => 0,
                         m => m & !roomy(cluster_room, self.sphere_offset[s] + r),
                     };
-                    if asked != 0 && lanes_touch_map(map, grid, p, r, asked) {
+                    if asked != 0
+                        && lanes_touch_map(map, grid, p, r, asked)
+                        && (!E || map_counted(&mut self.hit, self.live, (map, grid), p, r, asked))
+                    {
                         self.remember((l, s, Touched::Map));
                         return true;
                     }
@@ -1073,7 +1188,7 @@ impl BatchChecker {
     }
 
     #[inline(always)]
-    fn self_contact(&mut self) -> bool {
+    fn self_contact<const E: bool>(&mut self) -> bool {
         let mut next = 0;
         // Most pairs' bounds are apart in every lane: a tight loop finds those that are not.
         while let Some(k) = next_overlapping(&self.pairs, &self.bounds, next) {
@@ -1094,7 +1209,7 @@ impl BatchChecker {
             let clusters_b = self.link_clusters[b].clone();
             for first in clusters_b.clone().step_by(MASK_BITS) {
                 let group = first..clusters_b.end.min(first + MASK_BITS);
-                if self.clusters_touch((a, ba, ra), (b, bb, rb), group, adjust) {
+                if self.clusters_touch::<E>((a, ba, ra), (b, bb, rb), group, adjust) {
                     return true;
                 }
             }
@@ -1106,7 +1221,7 @@ impl BatchChecker {
     /// clusters `clusters_b` (at most 64) of link `b` in some lane, the spheres' radii summed
     /// with `adjust` (the pair's [`SelfPair::adjust`]).
     #[inline(always)]
-    fn clusters_touch(
+    fn clusters_touch<const E: bool>(
         &mut self,
         (a, ba, ra): (usize, [F8; 3], f32),
         (b, bb, rb): (usize, [F8; 3], f32),
@@ -1140,7 +1255,7 @@ impl BatchChecker {
                     continue;
                 }
                 self.place_spheres(a, ca);
-                if self.spheres_touch(b, ca, cb, adjust) {
+                if self.spheres_touch::<E>(b, ca, cb, adjust) {
                     return true;
                 }
             }
@@ -1156,22 +1271,30 @@ impl BatchChecker {
             return true;
         };
         let q = self.poses[self.frame[l]].apply_inverse(p);
-        let zero = F8::splat(0.0);
-        let mut d2 = zero;
-        for i in 0..3 {
-            let gap = (F8::splat(lo[i]) - q[i])
-                .max(q[i] - F8::splat(hi[i]))
-                .max(zero);
-            d2 = gap.mul_add(gap, d2);
-        }
-        d2.any_lt(F8::splat(r * r))
+        box_gap2((lo, hi), q).any_lt(F8::splat(r * r))
+    }
+
+    /// The lanes (bits) where [`BatchChecker::box_reached`] finds the ball reaching the box.
+    #[inline(always)]
+    fn box_lanes(&self, l: usize, p: [F8; 3], r: f32) -> u32 {
+        let Some((lo, hi)) = self.bound_box[l] else {
+            return ALL_LANES;
+        };
+        let q = self.poses[self.frame[l]].apply_inverse(p);
+        box_gap2((lo, hi), q).lt_mask(F8::splat(r * r)).bits()
     }
 
     /// True when a sphere of cluster `ca` (placed) overlaps one of cluster `cb` of link `b`
     /// in some lane, their radii summed with `adjust`; `cb`'s spheres are placed only if a
     /// sphere of `ca` reaches its bound.
     #[inline(always)]
-    fn spheres_touch(&mut self, b: usize, ca: usize, cb: usize, adjust: f32) -> bool {
+    fn spheres_touch<const E: bool>(
+        &mut self,
+        b: usize,
+        ca: usize,
+        cb: usize,
+        adjust: f32,
+    ) -> bool {
         let (pb, crb) = (self.cluster_at[cb], self.cluster[cb].1);
         let range_a = self.cluster[ca].2.clone();
         for i in range_a {
@@ -1185,7 +1308,10 @@ impl BatchChecker {
             let range_b = self.cluster[cb].2.clone();
             let (at_b, model_b) = (&self.sphere_at[range_b.clone()], &self.sphere[range_b]);
             for (&pj, &(_, rj)) in at_b.iter().zip(model_b) {
-                if overlap(pi, ri + adjust, pj, rj) {
+                if overlap(pi, ri + adjust, pj, rj)
+                    && (!E
+                        || overlap_counted(&mut self.hit, self.live, (pi, ri + adjust), (pj, rj)))
+                {
                     return true;
                 }
             }
@@ -1216,10 +1342,93 @@ fn next_overlapping(pairs: &[SelfPair], bounds: &[[F8; 3]], from: usize) -> Opti
 /// True when balls `(a, ra)` and `(b, rb)` overlap in some lane.
 #[inline(always)]
 fn overlap(a: [F8; 3], ra: f32, b: [F8; 3], rb: f32) -> bool {
-    let (dx, dy, dz) = (a[0] - b[0], a[1] - b[1], a[2] - b[2]);
     let r = ra + rb;
+    gap2(a, b).any_lt(F8::splat(r * r))
+}
+
+/// The lanes (bits) where [`overlap`] finds the balls overlapping.
+#[inline(always)]
+fn overlap_lanes(a: [F8; 3], ra: f32, b: [F8; 3], rb: f32) -> u32 {
+    let r = ra + rb;
+    gap2(a, b).lt_mask(F8::splat(r * r)).bits()
+}
+
+/// The squared distances from the points `q` (eight lanes) to the box `[lo, hi]`.
+#[inline(always)]
+fn box_gap2((lo, hi): ([f32; 3], [f32; 3]), q: [F8; 3]) -> F8 {
+    let zero = F8::splat(0.0);
+    let mut d2 = zero;
+    for i in 0..3 {
+        let gap = (F8::splat(lo[i]) - q[i])
+            .max(q[i] - F8::splat(hi[i]))
+            .max(zero);
+        d2 = gap.mul_add(gap, d2);
+    }
+    d2
+}
+
+/// The squared distances between the points `a` and `b`, lane by lane.
+#[inline(always)]
+fn gap2(a: [F8; 3], b: [F8; 3]) -> F8 {
+    let (dx, dy, dz) = (a[0] - b[0], a[1] - b[1], a[2] - b[2]);
     dx.mul_add(dx, dy.mul_add(dy, dz * dz))
-        .any_lt(F8::splat(r * r))
+}
+
+/// In [`BatchChecker::lane_flags`]'s walks, whether a contact found in `lanes` counts: true
+/// when some of them are still `live`; those are added to `hit`.
+#[inline(always)]
+fn counted(hit: &mut u32, live: u32, lanes: u32) -> bool {
+    let lanes = lanes & live;
+    *hit |= lanes;
+    lanes != 0
+}
+
+/// [`counted`] for balls `a` and `b` that [`overlap`].
+#[inline(always)]
+fn overlap_counted(
+    hit: &mut u32,
+    live: u32,
+    (a, ra): ([F8; 3], f32),
+    (b, rb): ([F8; 3], f32),
+) -> bool {
+    counted(hit, live, overlap_lanes(a, ra, b, rb))
+}
+
+/// [`counted`] for the ball at `p` with radius `r` where it penetrates the objects `mask`
+/// of `objects`.
+#[inline(always)]
+fn objects_counted(
+    hit: &mut u32,
+    live: u32,
+    objects: &[Object8],
+    mask: u64,
+    p: [F8; 3],
+    r: f32,
+) -> bool {
+    counted(hit, live, penetrating_lanes_of(objects, mask, p, r))
+}
+
+/// [`counted`] for the ball at `p` with radius `r` in the lanes of `lanes` (bits) where
+/// [`lanes_touch_map`] finds it touching an occupied voxel, each asked alone.
+#[inline(always)]
+fn map_counted(
+    hit: &mut u32,
+    live: u32,
+    (map, grid): (Option<&OccupancyMap>, Option<&Clearance>),
+    p: [F8; 3],
+    r: f32,
+    lanes: u32,
+) -> bool {
+    let mut touching = 0;
+    let mut m = lanes;
+    while m != 0 {
+        let lane = 1 << m.trailing_zeros();
+        m &= m - 1;
+        if lanes_touch_map(map, grid, p, r, lane) {
+            touching |= lane;
+        }
+    }
+    counted(hit, live, touching)
 }
 
 /// Of the lanes in `lanes` (bits), those where the grid cannot clear the ball (centres `p`,
@@ -1408,6 +1617,99 @@ mod tests {
                 "{name}: the pairs not asked"
             );
             assert_eq!(seen.len(), 3, "{name}: flags seen {seen:?}");
+        }
+    }
+
+    /// The flags of a state alone by the early-ending tests (the environment's, the self
+    /// pairs' where it clears, the hiding test's when validating): what each lane of
+    /// [`BatchChecker::lane_flags`] must give.
+    fn flags_alone(c: &mut BatchChecker, q: &[f64]) -> StateFlags {
+        for (lane, &v) in c.lanes.iter_mut().zip(q) {
+            *lane = F8::splat(v as f32);
+        }
+        c.live = 1;
+        c.begin(None);
+        let env = c.env_contact::<false>();
+        let pairs = env || c.self_contact::<false>();
+        let env = env || (c.validating && c.may_hide::<false>());
+        c.live = ALL_LANES;
+        StateFlags { env, pairs }
+    }
+
+    /// Each lane's flags from one walk of eight states are the state's own (those of the
+    /// early-ending tests on it alone, and of `state_flags`), in AVX2 and portable code
+    /// alike: on eight states along short motions of both robots, among random boxes and a
+    /// map's voxels and beads that fit inside links, with the balls as built, grown, and
+    /// validating (so that a batch mixes states in contact with clear ones, and every kind of
+    /// contact ends some walk).
+    #[test]
+    fn lane_flags_are_each_states_own() {
+        use crate::world::map::{MapParams, OccupancyMap};
+        use rand::Rng;
+        let mut rng = rand::rngs::StdRng::seed_from_u64(21);
+        for name in ["fetch", "panda"] {
+            let robot = Robot::builtin(name).unwrap();
+            let mut env = six_boxes(&mut rng);
+            // Beads small enough to lie inside a link unseen by its spheres (the hiding test).
+            for i in 0..30 {
+                let at = [0.0..0.9, -0.6..0.6, 0.2..1.4].map(|r| rng.random_range(r));
+                env.add(crate::world::Object {
+                    name: format!("bead{i}"),
+                    shape: crate::collision::Shape::cuboid([0.004; 3]),
+                    pose: crate::Pose::translation(at[0], at[1], at[2]),
+                })
+                .unwrap();
+            }
+            let mut map = OccupancyMap::new(MapParams {
+                resolution: 0.02,
+                ..MapParams::default()
+            });
+            for _ in 0..300 {
+                let p = [
+                    rng.random_range(0.2..1.0),
+                    rng.random_range(-0.6..0.6),
+                    rng.random_range(0.2..1.3),
+                ];
+                map.set_voxel(map.key_of(p), true);
+            }
+            env.set_map(Some(Arc::new(map)));
+            let (n, links) = (robot.dof(), robot.links().len());
+            for mode in ["built", "grown", "validating"] {
+                let (mut sut, mut alone, mut portable) = three_checkers(&robot, &env);
+                for c in [&mut sut, &mut alone, &mut portable] {
+                    match mode {
+                        "grown" => c.inflate(&vec![0.01; links], &[]),
+                        "validating" => assert!(c.validate(true)),
+                        _ => {}
+                    }
+                }
+                let (mut a, mut b) = (vec![0.0; n], vec![0.0; n]);
+                let mut qs = vec![vec![0.0; n]; LANES];
+                let mut lanes = vec![F8::default(); n];
+                let (mut mixed, mut kinds) = (0, std::collections::HashSet::new());
+                for _ in 0..300 {
+                    robot.sample_uniform(&mut rng, &mut a);
+                    robot.sample_uniform(&mut rng, &mut b);
+                    for (i, q) in qs.iter_mut().enumerate() {
+                        robot.interpolate(&a, &b, 0.03 * i as f64, q);
+                        for (lane, &v) in lanes.iter_mut().zip(q.iter()) {
+                            lane.0[i] = v as f32;
+                        }
+                    }
+                    let flags = sut.lane_flags(&lanes);
+                    assert_eq!(flags, portable.lane_flags(&lanes), "{name} {mode}");
+                    for (i, q) in qs.iter().enumerate() {
+                        let own = flags_alone(&mut alone, q);
+                        assert_eq!(flags.lane(i), own, "{name} {mode} lane {i}: {q:?}");
+                        assert_eq!(alone.state_flags(q), own, "{name} {mode}");
+                        kinds.insert((own.env, own.pairs));
+                    }
+                    let flagged = flags.env | flags.pairs;
+                    mixed += usize::from(flagged != 0 && flagged != ALL_LANES);
+                }
+                assert!(mixed >= 20, "{name} {mode}: {mixed} mixed batches");
+                assert_eq!(kinds.len(), 3, "{name} {mode}: flags seen {kinds:?}");
+            }
         }
     }
 

@@ -79,6 +79,20 @@ pub(super) fn penetrated(objects: &[Object8], mask: u64, p: [F8; 3], r: f32) -> 
     out
 }
 
+/// The lanes (bits) where the ball at `p` with radius `r` penetrates one of the objects of
+/// `mask`: those behind [`penetrated`]'s verdict.
+#[inline(always)]
+pub(super) fn penetrating_lanes_of(objects: &[Object8], mask: u64, p: [F8; 3], r: f32) -> u32 {
+    let mut lanes = 0;
+    let mut m = mask;
+    while m != 0 {
+        let j = m.trailing_zeros() as usize;
+        m &= m - 1;
+        lanes |= penetrating_lanes(&objects[j], p, r);
+    }
+    lanes
+}
+
 /// The lanes (bits) where the ball at `p` with radius `r` penetrates object `o`
 /// ([`penetrates`] lane by lane).
 #[inline(always)]
