@@ -9,10 +9,9 @@
 //! self pair whose bounds meet, lies within the bound of a link with room for it. (A link
 //! wholly inside an obstacle touches spheres: they are centred inside the link.)
 
+use super::flags::counted;
 use super::lanes::F8;
-use super::{
-    counted, overlap, overlap_lanes, unclear_lanes, BatchChecker, ObjectKind, SelfPair, MARGIN,
-};
+use super::{overlap, overlap_lanes, unclear_lanes, BatchChecker, ObjectKind, SelfPair, MARGIN};
 use crate::collision::Shape;
 use crate::robot::spheres::pockets::LinkPockets;
 use crate::robot::{Geometry, LinkShape, Robot};

@@ -34,6 +34,9 @@
 //! baseline target; the arithmetic is the same (products are summed by fused multiply-adds
 //! on both, see [`lanes`]).
 
+mod flags;
+use flags::{map_counted, objects_counted, overlap_counted};
+pub use flags::{LaneFlags, StateFlags};
 mod hiding;
 pub use hiding::prepare_validation;
 mod kinematics;
@@ -48,9 +51,7 @@ use crate::world::Environment;
 use hiding::Hiding;
 use kinematics::Joint8;
 use lanes::{boxes_overlapping, edge_fractions, edge_lanes, has_avx2, Pose8, ALL_LANES, F8, LANES};
-use objects::{
-    penetrated, penetrates, penetrating_lanes, penetrating_lanes_of, Object8, ObjectKind,
-};
+use objects::{penetrated, penetrates, penetrating_lanes, Object8, ObjectKind};
 use std::sync::Arc;
 
 /// Environment contacts remembered and tried first in the next batch (see
@@ -73,56 +74,6 @@ const STATIC: u32 = u32::MAX;
 
 /// Added to every radius (metres): the batch checker errs towards contact.
 pub const MARGIN: f32 = 1e-4;
-
-/// What the sphere lanes find of one configuration ([`BatchChecker::state_flags`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct StateFlags {
-    /// Some link may touch an object or the map.
-    pub env: bool,
-    /// Some pair of links may touch each other (or was not asked, as `env` was set).
-    pub pairs: bool,
-}
-
-impl StateFlags {
-    /// Either test flagged it.
-    pub fn any(self) -> bool {
-        self.env || self.pairs
-    }
-}
-
-/// What the sphere lanes find of eight configurations, lane by lane
-/// ([`BatchChecker::lane_flags`]): bit `i` of each mask is lane `i`'s [`StateFlags`] field.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct LaneFlags {
-    /// The lanes where some link may touch an object or the map.
-    pub env: u32,
-    /// The lanes where some pair of links may touch each other (or that were not asked, as
-    /// `env` was set there).
-    pub pairs: u32,
-}
-
-impl LaneFlags {
-    /// Lane `i`'s flags.
-    pub fn lane(self, i: usize) -> StateFlags {
-        StateFlags {
-            env: self.env >> i & 1 == 1,
-            pairs: self.pairs >> i & 1 == 1,
-        }
-    }
-
-    /// Some lane is flagged.
-    pub fn any(self) -> bool {
-        self.env | self.pairs != 0
-    }
-}
-
-/// The tests [`BatchChecker::lane_flags`] walks lane by lane.
-#[derive(Clone, Copy)]
-enum Test {
-    Environment,
-    SelfPairs,
-    Hiding,
-}
 
 /// A self-collision pair: links `a` and `b`, their bound radii, and the square of their sum
 /// (the bounds overlap where their centres are nearer than that; `f32`, as [`overlap`]).
@@ -551,38 +502,6 @@ impl BatchChecker {
         self.alone(|sut| sut.lanes_may_collide(None))
     }
 
-    /// Which tests flag configuration `q`: the environment (objects, the map and, when
-    /// validating, obstacles that could hide inside a link), and the self pairs (asked only
-    /// when the environment's test clears; flagged otherwise). A part not flagged is clear:
-    /// every link of the environment, or every pair of links of each other.
-    pub fn state_flags(&mut self, q: &[f64]) -> StateFlags {
-        for (lane, &v) in self.lanes.iter_mut().zip(q) {
-            *lane = F8::splat(v as f32);
-        }
-        self.flags_of_lanes(1).lane(0)
-    }
-
-    /// Which tests flag each of eight configurations given per variable (`lanes[j]` holds
-    /// variable `j` of each): lane by lane what [`BatchChecker::state_flags`] finds of each
-    /// alone, from one placement of the eight. A walk does not end at its first contact: the
-    /// lanes that contact is in are set aside and the walk is made again for the others,
-    /// until it finds none.
-    pub fn lane_flags(&mut self, lanes: &[F8]) -> LaneFlags {
-        self.lanes[..self.dof].copy_from_slice(&lanes[..self.dof]);
-        self.flags_of_lanes(ALL_LANES)
-    }
-
-    /// [`BatchChecker::lane_flags`] of the configurations in `self.lanes`, of which those in
-    /// `distinct` (bits) are distinct (one lane, while one state fills them all).
-    fn flags_of_lanes(&mut self, distinct: u32) -> LaneFlags {
-        #[cfg(target_arch = "x86_64")]
-        if self.avx2 {
-            // SAFETY: the CPU has AVX2 (checked at construction).
-            return unsafe { self.flags_avx2(distinct) };
-        }
-        self.flags(distinct)
-    }
-
     /// True when configuration `q` surely touches something: the balls inside the geometry
     /// ([`SphereModel::inner`](crate::robot::spheres::SphereModel::inner), less the margin),
     /// down the same hierarchy, touch an object, the map or each other.
@@ -887,58 +806,6 @@ impl BatchChecker {
         self.env_contact::<false>()
             || self.self_contact::<false>()
             || (self.validating && self.may_hide::<false>())
-    }
-
-    /// [`BatchChecker::flags`] compiled for AVX2 and FMA.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    unsafe fn flags_avx2(&mut self, distinct: u32) -> LaneFlags {
-        self.flags(distinct)
-    }
-
-    /// The checks of [`BatchChecker::check`] lane by lane, in the lanes `distinct` (bits):
-    /// the self pairs and the hiding test asked in the lanes the environment's test clears.
-    #[inline(always)]
-    fn flags(&mut self, distinct: u32) -> LaneFlags {
-        self.begin(None);
-        let env = self.flagged(distinct, Test::Environment);
-        let pairs = env | self.flagged(distinct & !env, Test::SelfPairs);
-        let hide = match self.validating {
-            true => self.flagged(distinct & !env, Test::Hiding),
-            false => 0,
-        };
-        self.live = ALL_LANES;
-        LaneFlags {
-            env: env | hide,
-            pairs,
-        }
-    }
-
-    /// The lanes of `live` where `test` finds a contact: walked again with the lanes found
-    /// set aside until it finds none. (A contact found without its lanes, as the hiding test's
-    /// "nothing ruled out", flags every lane left.)
-    #[inline(always)]
-    fn flagged(&mut self, live: u32, test: Test) -> u32 {
-        let mut found = 0;
-        self.live = live;
-        while self.live != 0 {
-            self.hit = 0;
-            let contact = match test {
-                Test::Environment => self.env_contact::<true>(),
-                Test::SelfPairs => self.self_contact::<true>(),
-                Test::Hiding => self.may_hide::<true>(),
-            };
-            if !contact {
-                break;
-            }
-            let hit = match self.hit {
-                0 => self.live,
-                hit => hit,
-            };
-            found |= hit;
-            self.live &= !hit;
-        }
-        found
     }
 
     /// A batch's kinematics, before its tests: the lanes from the edge, if given, a new
@@ -1372,63 +1239,6 @@ fn box_gap2((lo, hi): ([f32; 3], [f32; 3]), q: [F8; 3]) -> F8 {
 fn gap2(a: [F8; 3], b: [F8; 3]) -> F8 {
     let (dx, dy, dz) = (a[0] - b[0], a[1] - b[1], a[2] - b[2]);
     dx.mul_add(dx, dy.mul_add(dy, dz * dz))
-}
-
-/// In [`BatchChecker::lane_flags`]'s walks, whether a contact found in `lanes` counts: true
-/// when some of them are still `live`; those are added to `hit`.
-#[inline(always)]
-fn counted(hit: &mut u32, live: u32, lanes: u32) -> bool {
-    let lanes = lanes & live;
-    *hit |= lanes;
-    lanes != 0
-}
-
-/// [`counted`] for balls `a` and `b` that [`overlap`].
-#[inline(always)]
-fn overlap_counted(
-    hit: &mut u32,
-    live: u32,
-    (a, ra): ([F8; 3], f32),
-    (b, rb): ([F8; 3], f32),
-) -> bool {
-    counted(hit, live, overlap_lanes(a, ra, b, rb))
-}
-
-/// [`counted`] for the ball at `p` with radius `r` where it penetrates the objects `mask`
-/// of `objects`.
-#[inline(always)]
-fn objects_counted(
-    hit: &mut u32,
-    live: u32,
-    objects: &[Object8],
-    mask: u64,
-    p: [F8; 3],
-    r: f32,
-) -> bool {
-    counted(hit, live, penetrating_lanes_of(objects, mask, p, r))
-}
-
-/// [`counted`] for the ball at `p` with radius `r` in the lanes of `lanes` (bits) where
-/// [`lanes_touch_map`] finds it touching an occupied voxel, each asked alone.
-#[inline(always)]
-fn map_counted(
-    hit: &mut u32,
-    live: u32,
-    (map, grid): (Option<&OccupancyMap>, Option<&Clearance>),
-    p: [F8; 3],
-    r: f32,
-    lanes: u32,
-) -> bool {
-    let mut touching = 0;
-    let mut m = lanes;
-    while m != 0 {
-        let lane = 1 << m.trailing_zeros();
-        m &= m - 1;
-        if lanes_touch_map(map, grid, p, r, lane) {
-            touching |= lane;
-        }
-    }
-    counted(hit, live, touching)
 }
 
 /// Of the lanes in `lanes` (bits), those where the grid cannot clear the ball (centres `p`,
