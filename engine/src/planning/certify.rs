@@ -15,11 +15,12 @@
 //! states' largest; one walk gives each state's own flags, [`BatchChecker::lane_flags`]), then
 //! the flagged states on the exact geometry with their own margins (only the links against
 //! the obstacles, or only against each other, when the lanes flag only that). A segment
-//! whose ends are not both clear is halved, and its halves asked again with their own
-//! (smaller) margins, down to [`DEPTH`] halvings (segments 32 times shorter); there its states are checked without a margin, as a discrete walk would
-//! check them, and a contact found between the validation's states is returned. Only what is
-//! left at that depth (a state closer than a hair to something, where a motion could also
-//! just touch it) is not certified; [`Certified::uncertified`] counts those segments.
+//! whose ends are not both clear is halved, and its halves asked again with their own (smaller)
+//! margins, down to [`DEPTH`] halvings (segments 32 times shorter); there its states are
+//! checked without a margin, as a discrete walk would check them, and a contact found between
+//! the validation's states is returned. Only what is left at that depth (a state closer than a
+//! hair to something, where a motion could also just touch it) is not certified;
+//! [`Certified::uncertified`] counts those segments.
 
 use crate::collision::batch::lanes::{F8, LANES};
 use crate::collision::batch::BatchChecker;
