@@ -406,17 +406,37 @@ impl<'a> ExactChecker<'a> {
     /// map when `env`, the links against each other when `pairs` (for a caller that knows
     /// the rest clear: the sphere lanes' [`StateFlags`](super::batch::StateFlags)).
     pub fn contact_of(&mut self, q: &[f64], env: bool, pairs: bool) -> Option<Contact> {
+        let rest = self.rest;
+        let links: &[usize] = if env { &rest.moving_links } else { &[] };
+        let pairs: &[(usize, usize)] = if pairs { &rest.moving_pairs } else { &[] };
+        self.contact_of_parts(q, links, pairs)
+    }
+
+    /// [`ExactChecker::contact`] of the moving `links` against the objects and the map, and
+    /// of the `pairs` of links against each other, only (for a caller that knows the other
+    /// parts clear: the sphere lanes'
+    /// [`BatchChecker::flagged_links`](super::batch::BatchChecker::flagged_links) and
+    /// [`BatchChecker::flagged_pairs`](super::batch::BatchChecker::flagged_pairs)).
+    pub fn contact_of_parts(
+        &mut self,
+        q: &[f64],
+        links: &[usize],
+        pairs: &[(usize, usize)],
+    ) -> Option<Contact> {
         self.checks += 1;
         if let Some(c) = &self.static_contact {
             return Some(c.clone());
         }
         self.robot.forward_kinematics(q, &mut self.poses);
-        let rest = self.rest;
         // The links that never move keep the bounds placed at rest.
-        self.place_bounds(rest.moving_links.iter().copied());
-        let links: &[usize] = if env { &rest.moving_links } else { &[] };
-        let pairs: &[(usize, usize)] = if pairs { &rest.moving_pairs } else { &[] };
+        self.place_bounds(self.rest.moving_links.iter().copied());
         self.first_contact(links, pairs)
+    }
+
+    /// The links with geometry that move, and the pairs of links that move one relative to
+    /// the other: what [`ExactChecker::contact`] tests.
+    pub fn moving_parts(&self) -> (&[usize], &[(usize, usize)]) {
+        (&self.rest.moving_links, &self.rest.moving_pairs)
     }
 
     /// True when `q` is free in the exact geometry.

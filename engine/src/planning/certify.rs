@@ -1,26 +1,25 @@
 //! Certified motions: a returned path clear between its checked states, not only at them.
 //!
 //! A discrete walk checks a motion's states a resolution apart, and a hand's corner moves
-//! centimetres between two of them: it can graze an object there unseen. Between two states
-//! the robot's [`Sweep`] bounds how far any point of each link strays from where it is at the
+//! centimetres between two of them: it can graze an object there unseen. Between two states the
+//! robot's [`Sweep`] bounds how far any point of each link strays from where it is at the
 //! nearer of the two (from their poses: the chord its bound ball's centre moves, its turn and
 //! the chord's bend, [`Step::half_motion`]). So a motion between two states is clear all the
 //! way when, at each end, every link `l` is clear of the objects and the map by that bound
 //! `m_l`, and each pair of links by the sum of theirs or, where that is less, by half of how
-//! far the joints between them can move one relative to the other
-//! ([`Sweep::pair_half_motion`]: a hand and its fingers, with no joint between them, need no
-//! margin from each other). Each edge's states (at the validation's
-//! resolution) are checked so, the links grown by those margins (a state's the larger of its
-//! two segments'): eight states at a time in the sphere lanes first (grown by the eight
-//! states' largest; one walk gives each state's own flags, [`BatchChecker::lane_flags`]), then
-//! the flagged states on the exact geometry with their own margins (only the links against
-//! the obstacles, or only against each other, when the lanes flag only that). A segment
-//! whose ends are not both clear is halved, and its halves asked again with their own (smaller)
-//! margins, down to [`DEPTH`] halvings (segments 32 times shorter); there its states are
-//! checked without a margin, as a discrete walk would check them, and a contact found between
-//! the validation's states is returned. Only what is left at that depth (a state closer than a
-//! hair to something, where a motion could also just touch it) is not certified;
-//! [`Certified::uncertified`] counts those segments.
+//! far the joints between them can move one relative to the other ([`Sweep::pair_half_motion`]:
+//! a hand and its fingers, with no joint between them, need no margin from each other). Each
+//! edge's states (at the validation's resolution) are checked so, the links grown by those
+//! margins (a state's the larger of its two segments'): eight states at a time in the sphere
+//! lanes first (grown by the eight states' largest; one walk gives each state's own flags,
+//! [`BatchChecker::lane_flags`]), then the flagged states on the exact geometry with their own
+//! margins (only the links and the pairs of links the lanes flag,
+//! [`BatchChecker::flagged_links`]). A segment whose ends are not both clear is halved, and its
+//! halves asked again with their own (smaller) margins, down to [`DEPTH`] halvings (segments 32
+//! times shorter); there its states are checked without a margin, as a discrete walk would
+//! check them, and a contact found between the validation's states is returned. Only what is
+//! left at that depth (a state closer than a hair to something, where a motion could also just
+//! touch it) is not certified; [`Certified::uncertified`] counts those segments.
 
 use crate::collision::batch::lanes::{F8, LANES};
 use crate::collision::batch::BatchChecker;
@@ -83,6 +82,12 @@ pub(crate) struct Certified {
     centres8: Vec<[F8; 3]>,
     q: Vec<f64>,
     lanes: Vec<F8>,
+    /// Whether the lanes' flags name every part the exact checker tests (so that a flagged
+    /// state is asked of the exact geometry only for its flagged links and pairs), once known.
+    parts_named: Option<bool>,
+    /// A flagged state's links and pairs.
+    links_flagged: Vec<usize>,
+    pairs_flagged: Vec<(usize, usize)>,
     uncertified: u64,
 }
 
@@ -111,6 +116,9 @@ impl Certified {
             centres8: vec![[F8::splat(0.0); 3]; links],
             q: vec![0.0; n],
             lanes: vec![F8::splat(0.0); n],
+            parts_named: None,
+            links_flagged: Vec::new(),
+            pairs_flagged: Vec::new(),
             uncertified: 0,
         }
     }
@@ -310,6 +318,10 @@ impl Certified {
         level: u32,
     ) {
         let links = self.links;
+        let parts_named = *self.parts_named.get_or_insert_with(|| {
+            let (links, pairs) = exact.moving_parts();
+            batch.flags_cover(links, pairs)
+        });
         // The pairs' margins are new at each level.
         self.inflated.clear();
         exact.set_margins(&[], &self.pair_margins);
@@ -353,7 +365,16 @@ impl Certified {
                     robot.interpolate(a, b, k as f64 / finest as f64, &mut self.q);
                     let own = &self.margins[slot * links..(slot + 1) * links];
                     exact.set_link_margins(own);
-                    exact.contact_of(&self.q, flags.env, flags.pairs).is_none()
+                    if parts_named {
+                        self.links_flagged.clear();
+                        self.links_flagged.extend(batch.flagged_links(i));
+                        self.pairs_flagged.clear();
+                        self.pairs_flagged.extend(batch.flagged_pairs(i));
+                        let (l, p) = (&self.links_flagged, &self.pairs_flagged);
+                        exact.contact_of_parts(&self.q, l, p).is_none()
+                    } else {
+                        exact.contact_of(&self.q, flags.env, flags.pairs).is_none()
+                    }
                 };
                 if clear {
                     let known = self.known.get_mut(&k).expect("known");

@@ -1,11 +1,13 @@
-//! What the sphere lanes flag, state by state or lane by lane: which tests find a state (or
-//! each of eight) in possible contact, so that the exact geometry is asked only about that.
+//! What the sphere lanes flag, state by state or lane by lane: which links may touch the
+//! obstacles and which pairs of links each other, so that the exact geometry is asked only
+//! about those.
 //!
 //! [`BatchChecker::lane_flags`] walks the batch checker's tests once for eight states without
-//! ending at the first contact: a contact sets the lanes it is in aside (`counted`, at each
-//! kind of contact in the walk, compiled in only where the tests' `E` parameter is set), and
-//! the walk is made again for the others, until it finds none. The early-ending check keeps
-//! its source: its tests are the same functions with `E` unset.
+//! ending at a contact: each moving link and each pair is walked until its contacts are found
+//! in every lane or its spheres run out, a contact setting the lanes it is in aside for that
+//! part (`counted`, at each kind of contact in the walk, compiled in only where the tests' `E`
+//! parameter is set). The early-ending check keeps its source: its tests are the same
+//! functions with `E` unset.
 
 use super::lanes::{ALL_LANES, F8};
 use super::objects::{penetrating_lanes_of, Object8};
@@ -17,7 +19,7 @@ use crate::world::map::{Clearance, OccupancyMap};
 pub struct StateFlags {
     /// Some link may touch an object or the map.
     pub env: bool,
-    /// Some pair of links may touch each other (or was not asked, as `env` was set).
+    /// Some pair of links may touch each other.
     pub pairs: bool,
 }
 
@@ -34,8 +36,7 @@ impl StateFlags {
 pub struct LaneFlags {
     /// The lanes where some link may touch an object or the map.
     pub env: u32,
-    /// The lanes where some pair of links may touch each other (or that were not asked, as
-    /// `env` was set there).
+    /// The lanes where some pair of links may touch each other.
     pub pairs: u32,
 }
 
@@ -54,19 +55,12 @@ impl LaneFlags {
     }
 }
 
-/// The tests [`BatchChecker::lane_flags`] walks lane by lane.
-#[derive(Clone, Copy)]
-enum Test {
-    Environment,
-    SelfPairs,
-    Hiding,
-}
-
 impl BatchChecker {
     /// Which tests flag configuration `q`: the environment (objects, the map and, when
-    /// validating, obstacles that could hide inside a link), and the self pairs (asked only
-    /// when the environment's test clears; flagged otherwise). A part not flagged is clear:
-    /// every link of the environment, or every pair of links of each other.
+    /// validating, obstacles that could hide inside a link), and the self pairs; which links
+    /// and pairs they flag, [`BatchChecker::flagged_links`] and
+    /// [`BatchChecker::flagged_pairs`] (lane 0). A part not flagged is clear: a link of the
+    /// obstacles, a pair of links of each other.
     pub fn state_flags(&mut self, q: &[f64]) -> StateFlags {
         for (lane, &v) in self.lanes.iter_mut().zip(q) {
             *lane = F8::splat(v as f32);
@@ -76,9 +70,8 @@ impl BatchChecker {
 
     /// Which tests flag each of eight configurations given per variable (`lanes[j]` holds
     /// variable `j` of each): lane by lane what [`BatchChecker::state_flags`] finds of each
-    /// alone, from one placement of the eight. A walk does not end at its first contact: the
-    /// lanes that contact is in are set aside and the walk is made again for the others,
-    /// until it finds none.
+    /// alone, and the parts each lane flags ([`BatchChecker::flagged_links`],
+    /// [`BatchChecker::flagged_pairs`]), from one placement of the eight and one walk.
     pub fn lane_flags(&mut self, lanes: &[F8]) -> LaneFlags {
         self.lanes[..self.dof].copy_from_slice(&lanes[..self.dof]);
         self.flags_of_lanes(ALL_LANES)
@@ -103,91 +96,102 @@ impl BatchChecker {
     }
 
     /// The checks of [`BatchChecker::check`] lane by lane, in the lanes `distinct` (bits):
-    /// the self pairs and the hiding test asked in the lanes the environment's test clears.
+    /// every moving link against the obstacles and every pair, each walked until its
+    /// contacts are found in every lane or its spheres run out.
     #[inline(always)]
     fn flags(&mut self, distinct: u32) -> LaneFlags {
         self.begin(None);
-        let env = self.flagged(distinct, Test::Environment);
-        let pairs = env | self.flagged(distinct & !env, Test::SelfPairs);
-        let hide = match self.validating {
-            true => self.flagged(distinct & !env, Test::Hiding),
-            false => 0,
-        };
-        self.live = ALL_LANES;
-        LaneFlags {
-            env: env | hide,
-            pairs,
+        self.distinct = distinct;
+        self.link_hits.fill(0);
+        self.pair_hits.fill(0);
+        self.env_contact::<true>();
+        self.self_contact::<true>();
+        self.live = distinct;
+        if self.validating && self.may_hide::<true>() {
+            // Nothing ruled out: every part may touch.
+            for k in 0..self.moving.len() {
+                self.link_hits[self.moving[k]] = distinct;
+            }
+            self.pair_hits.fill(distinct);
         }
+        self.live = ALL_LANES;
+        let env = self.moving.iter().fold(0, |m, &l| m | self.link_hits[l]);
+        let pairs = self.pair_hits.iter().fold(0, |m, &h| m | h);
+        LaneFlags { env, pairs }
     }
 
-    /// The lanes of `live` where `test` finds a contact: walked again with the lanes found
-    /// set aside until it finds none. (A contact found without its lanes, as the hiding test's
-    /// "nothing ruled out", flags every lane left.)
-    #[inline(always)]
-    fn flagged(&mut self, live: u32, test: Test) -> u32 {
-        let mut found = 0;
-        self.live = live;
-        while self.live != 0 {
-            self.hit = 0;
-            let contact = match test {
-                Test::Environment => self.env_contact::<true>(),
-                Test::SelfPairs => self.self_contact::<true>(),
-                Test::Hiding => self.may_hide::<true>(),
-            };
-            if !contact {
-                break;
-            }
-            let hit = match self.hit {
-                0 => self.live,
-                hit => hit,
-            };
-            found |= hit;
-            self.live &= !hit;
-        }
-        found
+    /// The moving links the last [`BatchChecker::lane_flags`] (or
+    /// [`BatchChecker::state_flags`]) flagged against the obstacles in lane `lane`: the
+    /// others are clear of them there.
+    pub fn flagged_links(&self, lane: usize) -> impl Iterator<Item = usize> + '_ {
+        self.moving
+            .iter()
+            .copied()
+            .filter(move |&l| self.link_hits[l] >> lane & 1 == 1)
+    }
+
+    /// The pairs of links (the batch checker's own: a moving link and another, both with
+    /// spheres) the last [`BatchChecker::lane_flags`] flagged in lane `lane`: the others are
+    /// clear of each other there.
+    pub fn flagged_pairs(&self, lane: usize) -> impl Iterator<Item = (usize, usize)> + '_ {
+        self.pairs
+            .iter()
+            .zip(&self.pair_hits)
+            .filter(move |(_, &h)| h >> lane & 1 == 1)
+            .map(|(p, _)| (p.a, p.b))
+    }
+
+    /// True when the links and pairs these flags name cover `links` and `pairs` (the exact
+    /// checker's moving links with geometry and moving pairs): only then is a part not
+    /// flagged known clear.
+    pub fn flags_cover(&self, links: &[usize], pairs: &[(usize, usize)]) -> bool {
+        let key = |(a, b): (usize, usize)| (a.min(b), a.max(b));
+        let ours: std::collections::HashSet<_> =
+            self.pairs.iter().map(|p| key((p.a, p.b))).collect();
+        links.iter().all(|l| self.moving.contains(l))
+            && pairs.iter().all(|&p| ours.contains(&key(p)))
     }
 }
 
-/// In [`BatchChecker::lane_flags`]'s walks, whether a contact found in `lanes` counts: true
-/// when some of them are still `live`; those are added to `hit`.
+/// In [`BatchChecker::lane_flags`]'s walk, a contact of the part being walked found in
+/// `lanes`: those of them still `live` are added to `hit` and set aside; true (the part is
+/// done) when none is left.
 #[inline(always)]
-pub(super) fn counted(hit: &mut u32, live: u32, lanes: u32) -> bool {
-    let lanes = lanes & live;
+pub(super) fn counted((hit, live): (&mut u32, &mut u32), lanes: u32) -> bool {
+    let lanes = lanes & *live;
     *hit |= lanes;
-    lanes != 0
+    *live &= !lanes;
+    *live == 0
 }
 
 /// [`counted`] for balls `a` and `b` that [`overlap`].
 #[inline(always)]
 pub(super) fn overlap_counted(
-    hit: &mut u32,
-    live: u32,
+    found: (&mut u32, &mut u32),
     (a, ra): ([F8; 3], f32),
     (b, rb): ([F8; 3], f32),
 ) -> bool {
-    counted(hit, live, overlap_lanes(a, ra, b, rb))
+    counted(found, overlap_lanes(a, ra, b, rb))
 }
 
 /// [`counted`] for the ball at `p` with radius `r` where it penetrates the objects `mask`
 /// of `objects`.
 #[inline(always)]
 pub(super) fn objects_counted(
-    hit: &mut u32,
-    live: u32,
+    found: (&mut u32, &mut u32),
     objects: &[Object8],
     mask: u64,
     p: [F8; 3],
     r: f32,
 ) -> bool {
-    counted(hit, live, penetrating_lanes_of(objects, mask, p, r))
+    counted(found, penetrating_lanes_of(objects, mask, p, r))
 }
 
 /// [`counted`] for the ball at `p` with radius `r` in the lanes of `lanes` (bits) where
 /// [`lanes_touch_map`] finds it touching an occupied voxel, each asked alone.
 #[inline(always)]
 pub(super) fn map_counted(
-    hit: &mut u32,
-    live: u32,
+    found: (&mut u32, &mut u32),
     (map, grid): (Option<&OccupancyMap>, Option<&Clearance>),
     p: [F8; 3],
     r: f32,
@@ -202,5 +206,5 @@ pub(super) fn map_counted(
             touching |= lane;
         }
     }
-    counted(hit, live, touching)
+    counted(found, touching)
 }

@@ -9,7 +9,6 @@
 //! self pair whose bounds meet, lies within the bound of a link with room for it. (A link
 //! wholly inside an obstacle touches spheres: they are centred inside the link.)
 
-use super::flags::counted;
 use super::lanes::F8;
 use super::{overlap, overlap_lanes, unclear_lanes, BatchChecker, ObjectKind, SelfPair, MARGIN};
 use crate::collision::Shape;
@@ -200,8 +199,10 @@ impl BatchChecker {
             let p = self.objects[o].t.map(F8::splat);
             if self.within_bound(l, p)
                 && (!E || {
-                    let lanes = self.within_lanes(l, p);
-                    counted(&mut self.hit, self.live, lanes)
+                    // The lanes it may hide in, and the walk goes on.
+                    let lanes = self.within_lanes(l, p) & self.distinct;
+                    self.link_hits[l] |= lanes;
+                    false
                 })
             {
                 return true;
@@ -214,7 +215,12 @@ impl BatchChecker {
                 let (_, r) = self.bound[l].unwrap_or_default();
                 if room[l] {
                     let lanes = unclear_lanes(map.clearance(), self.bounds[l], r, self.live);
-                    if lanes != 0 && (!E || counted(&mut self.hit, self.live, lanes)) {
+                    if lanes != 0
+                        && (!E || {
+                            self.link_hits[l] |= lanes & self.distinct;
+                            false
+                        })
+                    {
                         return true;
                     }
                 }
@@ -228,8 +234,9 @@ impl BatchChecker {
             let p = self.poses[self.frame[x]].apply_const_on(h.points[i].0, self.avx2);
             if self.within_bound(y, p)
                 && (!E || {
-                    let lanes = self.within_lanes(y, p);
-                    counted(&mut self.hit, self.live, lanes)
+                    let lanes = self.within_lanes(y, p) & self.distinct;
+                    self.pair_hits[k] |= lanes;
+                    false
                 })
             {
                 return true;

@@ -20,10 +20,10 @@
 //! again alone, and only a state still flagged, whose balls inside the geometry
 //! ([`BatchChecker::state_surely_collides`]) touch nothing, goes to the exact checker
 //! ([`Validity`](crate::planning::validity::Validity) does). Where every state's verdict is
-//! wanted (certification), [`BatchChecker::lane_flags`] gives each lane's flags from one
-//! placement of the eight: a contact sets its lanes aside, and the walk goes on for the others
-//! (the same tests, compiled a second time through their `E` parameter, so that the
-//! early-ending walk keeps its source). An occupancy map is one more
+//! wanted (certification), [`BatchChecker::lane_flags`] gives each lane's flags, and the links
+//! and pairs that raised them, from one placement of the eight and one walk that does not end
+//! at a contact (the same tests, compiled a second time through their `E` parameter, so that
+//! the early-ending walk keeps its source). An occupancy map is one more
 //! obstacle down the same hierarchy: its [`Clearance`] grid clears most balls in one read per
 //! lane, and a sphere it cannot clear is decided by the map's voxels, lane by lane.
 //!
@@ -185,9 +185,13 @@ pub struct BatchChecker {
     /// fills every lane (the map's voxels are then walked once, not eight times). In
     /// [`BatchChecker::lane_flags`]'s walks, the lanes not yet found in contact.
     live: u32,
-    /// In [`BatchChecker::lane_flags`]'s walks (their tests' `E`), the lanes of the contacts
-    /// found: a contact counts only in the `live` lanes.
+    /// In [`BatchChecker::lane_flags`]'s walk (its tests' `E`): the lanes holding distinct
+    /// states, the lanes found so far for the link or pair being walked, and per link and per
+    /// pair the lanes where it may touch the obstacles or its partner.
+    distinct: u32,
     hit: u32,
+    link_hits: Vec<u32>,
+    pair_hits: Vec<u32>,
     /// The radii as built, while [`BatchChecker::inflate`] has grown them.
     uninflated: Option<Box<Radii>>,
     avx2: bool,
@@ -317,6 +321,7 @@ impl BatchChecker {
                 })
             })
             .collect();
+        let n_pairs = pairs.len();
         let n_links = links.len();
         assert!(pairs.iter().all(|p| p.a.max(p.b) < n_links));
         debug_assert!((0..n_links).all(|l| {
@@ -369,7 +374,10 @@ impl BatchChecker {
             batches: 0,
             remembered: 0,
             live: ALL_LANES,
+            distinct: ALL_LANES,
             hit: 0,
+            link_hits: vec![0; n_links],
+            pair_hits: vec![0; n_pairs],
             skip_recent: false,
             uninflated: None,
             lanes: vec![F8::default(); robot.dof()],
@@ -896,7 +904,7 @@ impl BatchChecker {
             Some(m) => m.clearance(),
             None => None,
         };
-        for k in 0..if self.skip_recent { 0 } else { RECENT } {
+        for k in 0..if self.skip_recent || E { 0 } else { RECENT } {
             let Some((l, s, j)) = self.recent[k] else {
                 break;
             };
@@ -907,23 +915,8 @@ impl BatchChecker {
             self.sphere_at[s] = self.poses[self.frame[l]].apply_const_on(c, self.avx2);
             let p = self.sphere_at[s];
             let hit = match j {
-                Touched::Object(j) => {
-                    penetrates(&self.objects[j], p, r)
-                        && (!E
-                            || objects_counted(
-                                &mut self.hit,
-                                self.live,
-                                &self.objects[j..=j],
-                                1,
-                                p,
-                                r,
-                            ))
-                }
-                Touched::Map => {
-                    lanes_touch_map(map, grid, p, r, self.live)
-                        && (!E
-                            || map_counted(&mut self.hit, self.live, (map, grid), p, r, self.live))
-                }
+                Touched::Object(j) => penetrates(&self.objects[j], p, r),
+                Touched::Map => lanes_touch_map(map, grid, p, r, self.live),
             };
             if hit {
                 self.remembered += 1;
@@ -953,9 +946,17 @@ impl BatchChecker {
     ) -> bool {
         let first = group * MASK_BITS;
         let end = self.objects.len().min(first + MASK_BITS);
-        for k in 0..self.moving.len() {
+        'links: for k in 0..self.moving.len() {
             let l = self.moving[k];
             self.place_bound(l);
+            if E {
+                // The lanes where this link's contacts are still to be found.
+                self.live = self.distinct & !self.link_hits[l];
+                self.hit = 0;
+                if self.live == 0 {
+                    continue;
+                }
+            }
             let (_, br) = self.bound[l].unwrap_or_default();
             let b = self.bounds[l];
             let link_mask = self.objects_reached(group, b, br);
@@ -1003,14 +1004,17 @@ impl BatchChecker {
                     if hit != 0
                         && (!E
                             || objects_counted(
-                                &mut self.hit,
-                                self.live,
+                                (&mut self.hit, &mut self.live),
                                 &self.objects[first..end],
                                 hit,
                                 p,
                                 r,
                             ))
                     {
+                        if E {
+                            self.link_hits[l] |= self.hit;
+                            continue 'links;
+                        }
                         let j = first + hit.trailing_zeros() as usize;
                         self.remember((l, s, Touched::Object(j)));
                         self.keep_for_screening((l, s, j));
@@ -1022,14 +1026,28 @@ impl BatchChecker {
                     };
                     if asked != 0
                         && lanes_touch_map(map, grid, p, r, asked)
-                        && (!E || map_counted(&mut self.hit, self.live, (map, grid), p, r, asked))
+                        && (!E
+                            || map_counted(
+                                (&mut self.hit, &mut self.live),
+                                (map, grid),
+                                p,
+                                r,
+                                asked,
+                            ))
                     {
+                        if E {
+                            self.link_hits[l] |= self.hit;
+                            continue 'links;
+                        }
                         self.remember((l, s, Touched::Map));
                         return true;
                     }
                 }
                 // Every sphere of the cluster is placed now.
                 self.sphere_stamp[ci] = self.sphere_stamp[ci].max(self.epoch);
+            }
+            if E {
+                self.link_hits[l] |= self.hit;
             }
         }
         false
@@ -1072,13 +1090,24 @@ impl BatchChecker {
             if !self.box_reached(a, bb, rb) || !self.box_reached(b, ba, ra) {
                 continue;
             }
+            if E {
+                // The lanes where this pair's contacts are still to be found.
+                self.live = self.distinct & !self.pair_hits[k];
+                self.hit = 0;
+            }
             // `b`'s clusters go 64 at a time (one per bit); most links have one such group.
             let clusters_b = self.link_clusters[b].clone();
             for first in clusters_b.clone().step_by(MASK_BITS) {
                 let group = first..clusters_b.end.min(first + MASK_BITS);
                 if self.clusters_touch::<E>((a, ba, ra), (b, bb, rb), group, adjust) {
+                    if E {
+                        break;
+                    }
                     return true;
                 }
+            }
+            if E {
+                self.pair_hits[k] |= self.hit;
             }
         }
         false
@@ -1177,7 +1206,11 @@ impl BatchChecker {
             for (&pj, &(_, rj)) in at_b.iter().zip(model_b) {
                 if overlap(pi, ri + adjust, pj, rj)
                     && (!E
-                        || overlap_counted(&mut self.hit, self.live, (pi, ri + adjust), (pj, rj)))
+                        || overlap_counted(
+                            (&mut self.hit, &mut self.live),
+                            (pi, ri + adjust),
+                            (pj, rj),
+                        ))
                 {
                     return true;
                 }
@@ -1394,11 +1427,11 @@ mod tests {
     }
 
     /// A state's flags agree with the full check (flagged exactly when it is), in AVX2 and
-    /// portable code alike, and what they leave unflagged is clear on the exact geometry:
-    /// with no environment flag no link touches an object, with no pair flag no two links
-    /// touch, on random states of both robots among random boxes (where all three outcomes
-    /// occur: nothing flagged, the pairs alone, the environment, whose flag stands for the
-    /// pairs too).
+    /// portable code alike, and what they leave unflagged is clear on the exact geometry: the
+    /// links not flagged touch no object, the pairs not flagged do not touch, and the flags
+    /// name every part the exact checker tests; on random states of both robots among random
+    /// boxes (where all four outcomes occur: nothing flagged, the pairs alone, the
+    /// environment alone, both).
     #[test]
     fn unflagged_parts_are_clear_in_the_exact_geometry() {
         let mut rng = rand::rngs::StdRng::seed_from_u64(13);
@@ -1407,6 +1440,10 @@ mod tests {
             let env = six_boxes(&mut rng);
             let (mut sut, mut full, mut portable) = three_checkers(&robot, &env);
             let mut exact = crate::collision::exact::ExactChecker::new(&robot, &env);
+            let (links, pairs) = exact.moving_parts();
+            let (links, pairs) = (links.to_vec(), pairs.to_vec());
+            assert!(sut.flags_cover(&links, &pairs), "{name}");
+            let key = |(a, b): (usize, usize)| (a.min(b), a.max(b));
             let mut q = vec![0.0; robot.dof()];
             let mut seen = std::collections::HashSet::new();
             for _ in 0..1500 {
@@ -1414,25 +1451,38 @@ mod tests {
                 let flags = sut.state_flags(&q);
                 assert_eq!(flags, portable.state_flags(&q), "{name}");
                 assert_eq!(flags.any(), full.state_may_collide(&q), "{name}");
-                if !flags.env {
-                    assert!(exact.contact_of(&q, true, false).is_none(), "{name}: {q:?}");
-                }
-                if !flags.pairs {
-                    assert!(exact.contact_of(&q, false, true).is_none(), "{name}: {q:?}");
-                }
+                let flagged: Vec<_> = sut.flagged_links(0).collect();
+                let clear: Vec<_> = links
+                    .iter()
+                    .copied()
+                    .filter(|l| !flagged.contains(l))
+                    .collect();
+                assert!(
+                    exact.contact_of_parts(&q, &clear, &[]).is_none(),
+                    "{name}: {q:?}"
+                );
+                let flagged: Vec<_> = sut.flagged_pairs(0).map(key).collect();
+                let apart: Vec<_> = pairs
+                    .iter()
+                    .copied()
+                    .filter(|&p| !flagged.contains(&key(p)))
+                    .collect();
+                assert!(
+                    exact.contact_of_parts(&q, &[], &apart).is_none(),
+                    "{name}: {q:?}"
+                );
+                assert_eq!(flags.env, sut.flagged_links(0).next().is_some(), "{name}");
+                assert_eq!(flags.pairs, sut.flagged_pairs(0).next().is_some(), "{name}");
                 seen.insert((flags.env, flags.pairs));
             }
-            assert!(
-                !seen.contains(&(true, false)),
-                "{name}: the pairs not asked"
-            );
-            assert_eq!(seen.len(), 3, "{name}: flags seen {seen:?}");
+            assert_eq!(seen.len(), 4, "{name}: flags seen {seen:?}");
         }
     }
 
-    /// The flags of a state alone by the early-ending tests (the environment's, the self
-    /// pairs' where it clears, the hiding test's when validating): what each lane of
-    /// [`BatchChecker::lane_flags`] must give.
+    /// The flags of a state alone by the early-ending tests (the environment's and the
+    /// hiding test's when validating, the self pairs'): what each lane of
+    /// [`BatchChecker::lane_flags`] must give (the built-in robots have no part that could
+    /// hide in another link, so the hiding test flags only the environment).
     fn flags_alone(c: &mut BatchChecker, q: &[f64]) -> StateFlags {
         for (lane, &v) in c.lanes.iter_mut().zip(q) {
             *lane = F8::splat(v as f32);
@@ -1440,7 +1490,11 @@ mod tests {
         c.live = 1;
         c.begin(None);
         let env = c.env_contact::<false>();
-        let pairs = env || c.self_contact::<false>();
+        // An environment contact ends that walk before every link's bound is placed.
+        for k in 0..c.moving.len() {
+            c.place_bound(c.moving[k]);
+        }
+        let pairs = c.self_contact::<false>();
         let env = env || (c.validating && c.may_hide::<false>());
         c.live = ALL_LANES;
         StateFlags { env, pairs }
@@ -1512,13 +1566,20 @@ mod tests {
                         let own = flags_alone(&mut alone, q);
                         assert_eq!(flags.lane(i), own, "{name} {mode} lane {i}: {q:?}");
                         assert_eq!(alone.state_flags(q), own, "{name} {mode}");
+                        // The same parts flagged as for the state alone.
+                        let parts = |c: &BatchChecker, i| {
+                            let links: Vec<_> = c.flagged_links(i).collect();
+                            (links, c.flagged_pairs(i).collect::<Vec<_>>())
+                        };
+                        assert_eq!(parts(&sut, i), parts(&alone, 0), "{name} {mode} lane {i}");
+                        assert_eq!(parts(&sut, i), parts(&portable, i), "{name} {mode}");
                         kinds.insert((own.env, own.pairs));
                     }
                     let flagged = flags.env | flags.pairs;
                     mixed += usize::from(flagged != 0 && flagged != ALL_LANES);
                 }
                 assert!(mixed >= 20, "{name} {mode}: {mixed} mixed batches");
-                assert_eq!(kinds.len(), 3, "{name} {mode}: flags seen {kinds:?}");
+                assert_eq!(kinds.len(), 4, "{name} {mode}: flags seen {kinds:?}");
             }
         }
     }
