@@ -255,6 +255,9 @@ pub struct ExactChecker<'a> {
     /// direction that separated them or GJK ended on, and their last support points, tried
     /// first the next time (see [`gjk::separated_along`](super::gjk::separated_along)).
     witnesses: Vec<Witness>,
+    /// Per link, whether a check needs its pose; the links posed, in order (scratch).
+    needed: Vec<bool>,
+    chain: Vec<usize>,
     objects: Vec<ExactObject>,
     /// The first 64 objects' boxes, for the links' broad phase.
     boxes: ObjectBoxes,
@@ -344,6 +347,8 @@ impl<'a> ExactChecker<'a> {
             poses: rest.poses.clone(),
             bounds: vec![Vector3::zeros(); rest.poses.len()],
             witnesses: vec![Witness::default(); parts * (objects.len() + parts)],
+            needed: vec![false; rest.poses.len()],
+            chain: Vec::with_capacity(rest.poses.len()),
             boxes: ObjectBoxes::new(&objects),
             objects,
             rest,
@@ -427,9 +432,24 @@ impl<'a> ExactChecker<'a> {
         if let Some(c) = &self.static_contact {
             return Some(c.clone());
         }
-        self.robot.forward_kinematics(q, &mut self.poses);
-        // The links that never move keep the bounds placed at rest.
-        self.place_bounds(self.rest.moving_links.iter().copied());
+        // Only the links asked about and those they hang from are posed (in order, parents
+        // first), and only the links asked about have their bounds placed.
+        let tree = self.robot.links();
+        self.needed.fill(false);
+        for &l in links.iter().chain(pairs.iter().flat_map(|(a, b)| [a, b])) {
+            let mut at = Some(l);
+            while let Some(i) = at.filter(|&i| !self.needed[i]) {
+                self.needed[i] = true;
+                at = tree[i].parent;
+            }
+        }
+        let mut chain = std::mem::take(&mut self.chain);
+        chain.clear();
+        chain.extend((0..tree.len()).filter(|&i| self.needed[i]));
+        self.robot.forward_kinematics_of(&chain, q, &mut self.poses);
+        self.chain = chain;
+        let pair_links = pairs.iter().flat_map(|&(a, b)| [a, b]);
+        self.place_bounds(links.iter().copied().chain(pair_links));
         self.first_contact(links, pairs)
     }
 
