@@ -12,7 +12,10 @@
 //! cells whose centres surround `p`, each giving the same two bounds.
 //! The grid covers a box holding every occupied voxel (the cover) grown by the padding; farther
 //! out the cover itself bounds the distance. A query the grid cannot decide is decided exactly by
-//! the map ([`OccupancyMap::sphere_collides`](super::OccupancyMap::sphere_collides)).
+//! the map ([`OccupancyMap::sphere_collides`](super::OccupancyMap::sphere_collides)). A few
+//! boxes holding every occupied block ([`CoverBoxes`], [`Clearance::missed8`]) clear eight
+//! balls at once without a read when they miss them all in every lane (the batch checker asks
+//! them first for the links' bounds).
 //!
 //! Kept incrementally: as distances saturate at the padding, a change of occupancy alters only
 //! cells within the padding of it, and those depend only on occupied cells within twice the
@@ -20,6 +23,7 @@
 //! (growing the cover when occupied space appears past it). Cells live in bricks that copies
 //! share, so a snapshot holding the grids costs the next update only the bricks it rewrites.
 
+use super::cover::CoverBoxes;
 use super::distance::{distance_transform, MAX_PAD};
 use super::{BlockKey, OccupancyMap, VoxelKey};
 use crate::collision::batch::lanes::{Mask8, F8, LANES};
@@ -66,6 +70,8 @@ pub struct Clearance {
     /// The same in `f32`, rounded outwards.
     occupied_lo32: [f32; 3],
     occupied_hi32: [f32; 3],
+    /// A few boxes holding every occupied block ([`Clearance::missed8`]).
+    boxes: CoverBoxes,
 }
 
 /// One grid: cells of edge `res` holding distances to the nearest occupied cell, stored in
@@ -132,8 +138,10 @@ impl Clearance {
     /// `None` when the map has no occupied voxel or a grid would exceed [`MAX_CELLS`].
     pub fn of(map: &OccupancyMap, pad: f64) -> Option<Self> {
         let mut cover: Option<(BlockKey, BlockKey)> = None;
+        let mut occupied = Vec::new();
         for (b, &i) in &map.index {
             if map.blocks[i as usize].occupied != 0 {
+                occupied.push(*b);
                 let (lo, hi) = cover.get_or_insert((*b, *b));
                 for a in 0..3 {
                     lo[a] = lo[a].min(b[a]);
@@ -143,6 +151,7 @@ impl Clearance {
         }
         let cover = cover?;
         let res = map.resolution();
+        let boxes = CoverBoxes::around(&mut occupied, 4.0 * res);
         let fine = Level::empty(
             res,
             pad,
@@ -159,6 +168,7 @@ impl Clearance {
             occupied_hi: [0.0; 3],
             occupied_lo32: [0.0; 3],
             occupied_hi32: [0.0; 3],
+            boxes,
         };
         c.set_cover(cover, res);
         c.recompute(map, cover);
@@ -208,6 +218,7 @@ impl Clearance {
         let (mut lo, mut hi) = self.cover;
         for b in changed {
             if map.octobox(*b) != 0 {
+                self.boxes.hold(*b);
                 for a in 0..3 {
                     if b[a] < lo[a] {
                         lo[a] = b[a] - GROW_SLACK;
@@ -334,6 +345,13 @@ impl Clearance {
     #[inline(always)]
     pub fn unclear8(&self, p: [F8; 3], r: f32, lanes: u32) -> u32 {
         self.unclear8_within(p, r, lanes).0
+    }
+
+    /// True when the balls (centres `p` in eight lanes, radius `r`) miss every cover box in
+    /// every lane ([`CoverBoxes`]): clear without a read. False when a lane is not a number.
+    #[inline(always)]
+    pub fn missed8(&self, p: [F8; 3], r: f32) -> bool {
+        self.boxes.missed8(p, r)
     }
 
     /// [`Clearance::unclear8`], with a lower bound per lane on the distance (metres) from the
@@ -974,6 +992,7 @@ mod tests {
                 };
                 want |= (!clear as u32) << i;
             }
+            // The cover boxes clear a batch whose every ball misses them, before the grids.
             prop_assert_eq!(c.unclear8(p, r, lanes), want);
         }
 
@@ -1023,6 +1042,12 @@ mod tests {
                     prop_assert!(!map.has_occupied());
                     continue;
                 };
+                // The cover boxes, grown rather than built anew, still hold every occupied block.
+                for (b, &i) in &map.index {
+                    if map.blocks[i as usize].occupied != 0 {
+                        prop_assert!(updated.boxes.holds(*b), "block {:?}", b);
+                    }
+                }
                 for (f, u) in [(&fresh.fine, &updated.fine), (&fresh.coarse, &updated.coarse)] {
                     for (k, want) in f.cells() {
                         prop_assert_eq!(u.at(k), Some(want), "cell {:?}", k);

@@ -19,6 +19,7 @@
 
 mod bt_file;
 mod clearance;
+mod cover;
 mod distance;
 mod insert;
 
