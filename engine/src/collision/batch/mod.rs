@@ -93,6 +93,18 @@ struct SelfPair {
 /// link's clusters meet another link's this many at a time.
 const MASK_BITS: usize = 64;
 
+/// Slack of the clusters' eight-at-a-time test in their link's frame, metres: far above the
+/// `f32` rounding between it and the lanes' test in the world frame.
+const BLOCK_SLACK: f32 = 1e-4;
+
+/// A link's clusters eight at a time, in the frame the link rides in: centres and radii (lanes
+/// past the link's last cluster far away, radius zero).
+#[derive(Clone, Copy, Default)]
+struct ClusterBlock {
+    centre: [F8; 3],
+    radius: F8,
+}
+
 /// The decision [`BatchChecker::motion_free`] is given when it has none.
 type NoDecision = fn(&mut BatchChecker, usize, usize) -> bool;
 
@@ -129,6 +141,9 @@ pub struct BatchChecker {
     link_clusters: Vec<std::ops::Range<usize>>,
     /// Per link: the range of its spheres (its clusters' together).
     link_spheres: Vec<std::ops::Range<usize>>,
+    /// Per link: its clusters' blocks in `cluster_blocks` (the first holds its first eight).
+    link_blocks: Vec<std::ops::Range<usize>>,
+    cluster_blocks: Vec<ClusterBlock>,
     /// Per cluster: centre, radius (+ margin), spheres.
     cluster: Vec<([f32; 3], f32, std::ops::Range<usize>)>,
     /// Per sphere: centre (link frame), radius (+ margin).
@@ -350,6 +365,8 @@ impl BatchChecker {
             bound_box,
             link_clusters: model.link_clusters.clone(),
             link_spheres: model.ranges.clone(),
+            link_blocks: Vec::new(),
+            cluster_blocks: Vec::new(),
             cluster,
             sphere,
             cluster_offset,
@@ -398,6 +415,14 @@ impl BatchChecker {
             if let Some(slide) = sut.joints[l].slide.filter(|s| s.fixed_rotation) {
                 sut.poses[l].r = sut.poses[slide.parent].r;
             }
+        }
+        for l in 0..n_links {
+            let first = sut.cluster_blocks.len();
+            let blocks = sut.link_clusters[l].len().div_ceil(LANES);
+            sut.cluster_blocks
+                .resize(first + blocks, ClusterBlock::default());
+            sut.link_blocks.push(first..first + blocks);
+            sut.write_cluster_blocks(l);
         }
         sut.epoch = STATIC;
         for l in (0..n_links).filter(|&l| !moves[l]) {
@@ -565,6 +590,11 @@ impl BatchChecker {
             {
                 s.1 = r + m;
             }
+            let clusters = &self.cluster[self.link_clusters[l].clone()];
+            write_blocks(
+                &mut self.cluster_blocks[self.link_blocks[l].clone()],
+                clusters,
+            );
         }
         let links = self.bound.len();
         for (pair, base) in self.pairs.iter_mut().zip(&base.pairs) {
@@ -593,6 +623,18 @@ impl BatchChecker {
             s.1 = *r;
         }
         self.pairs.clone_from(&base.pairs);
+        for l in 0..self.link_blocks.len() {
+            self.write_cluster_blocks(l);
+        }
+    }
+
+    /// Writes link `l`'s cluster blocks from its clusters' centres and radii.
+    fn write_cluster_blocks(&mut self, l: usize) {
+        let clusters = &self.cluster[self.link_clusters[l].clone()];
+        write_blocks(
+            &mut self.cluster_blocks[self.link_blocks[l].clone()],
+            clusters,
+        );
     }
 
     /// `check` with the first lane marked as the only distinct one.
@@ -1137,24 +1179,68 @@ impl BatchChecker {
         if near_b == 0 {
             return false;
         }
-        for ca in self.link_clusters[a].clone() {
-            self.place_cluster(a, ca);
-            let (pa, cra) = (self.cluster_at[ca], self.cluster[ca].1);
-            if !overlap(pa, cra, bb, rb) || !self.box_reached(b, pa, cra) {
-                continue;
+        // `a`'s clusters eight at a time against the box around `b`'s bound's centres, in the
+        // frame `a` rides in; those it may reach, then lane by lane.
+        let q = self.poses[self.frame[a]].apply_inverse(bb);
+        let (lo, hi) = (
+            q.map(|v| F8::splat(v.hmin())),
+            q.map(|v| F8::splat(v.hmax())),
+        );
+        let zero = F8::splat(0.0);
+        let first = self.link_clusters[a].start;
+        for (k, blk) in self.link_blocks[a].clone().enumerate() {
+            let ClusterBlock { centre, radius } = self.cluster_blocks[blk];
+            let mut d2 = zero;
+            for i in 0..3 {
+                let gap = (lo[i] - centre[i]).max(centre[i] - hi[i]).max(zero);
+                d2 = gap.mul_add(gap, d2);
             }
-            let mut m = near_b;
-            while m != 0 {
-                let cb = clusters_b.start + m.trailing_zeros() as usize;
-                m &= m - 1;
-                let (pb, crb) = (self.cluster_at[cb], self.cluster[cb].1);
-                if !overlap(pa, cra, pb, crb) {
-                    continue;
-                }
-                self.place_spheres(a, ca);
-                if self.spheres_touch::<E>(b, ca, cb, adjust) {
+            let reach = radius + F8::splat(rb + BLOCK_SLACK);
+            let mut near_a = d2.le(reach * reach).bits();
+            while near_a != 0 {
+                let ca = first + k * LANES + near_a.trailing_zeros() as usize;
+                near_a &= near_a - 1;
+                if self.cluster_pair_touch::<E>(
+                    (a, ca),
+                    (b, bb, rb),
+                    clusters_b.start,
+                    near_b,
+                    adjust,
+                ) {
                     return true;
                 }
+            }
+        }
+        false
+    }
+
+    /// [`BatchChecker::clusters_touch`] for cluster `ca` of link `a` against the clusters
+    /// `near_b` (bits from `first_b`) of link `b` (bound centres `bb`, radius `rb`).
+    #[inline(always)]
+    fn cluster_pair_touch<const E: bool>(
+        &mut self,
+        (a, ca): (usize, usize),
+        (b, bb, rb): (usize, [F8; 3], f32),
+        first_b: usize,
+        near_b: u64,
+        adjust: f32,
+    ) -> bool {
+        self.place_cluster(a, ca);
+        let (pa, cra) = (self.cluster_at[ca], self.cluster[ca].1);
+        if !overlap(pa, cra, bb, rb) || !self.box_reached(b, pa, cra) {
+            return false;
+        }
+        let mut m = near_b;
+        while m != 0 {
+            let cb = first_b + m.trailing_zeros() as usize;
+            m &= m - 1;
+            let (pb, crb) = (self.cluster_at[cb], self.cluster[cb].1);
+            if !overlap(pa, cra, pb, crb) {
+                continue;
+            }
+            self.place_spheres(a, ca);
+            if self.spheres_touch::<E>(b, ca, cb, adjust) {
+                return true;
             }
         }
         false
@@ -1218,6 +1304,23 @@ impl BatchChecker {
             }
         }
         false
+    }
+}
+
+/// Writes `clusters` (centres, radii) eight to a block into `blocks`, the lanes past the last
+/// far away with radius zero.
+fn write_blocks(blocks: &mut [ClusterBlock], clusters: &[([f32; 3], f32, std::ops::Range<usize>)]) {
+    for (block, eight) in blocks.iter_mut().zip(clusters.chunks(LANES)) {
+        *block = ClusterBlock {
+            centre: [F8::splat(1e15); 3],
+            radius: F8::splat(0.0),
+        };
+        for (i, (c, r, _)) in eight.iter().enumerate() {
+            for (a, &v) in c.iter().enumerate() {
+                block.centre[a].0[i] = v;
+            }
+            block.radius.0[i] = *r;
+        }
     }
 }
 
