@@ -143,6 +143,7 @@ pub struct BatchChecker {
     link_spheres: Vec<std::ops::Range<usize>>,
     /// Per link: its clusters' blocks in `cluster_blocks` (the first holds its first eight).
     link_blocks: Vec<std::ops::Range<usize>>,
+    /// The links' clusters eight to a block, link by link, for the self pairs' first test.
     cluster_blocks: Vec<ClusterBlock>,
     /// Per cluster: centre, radius (+ margin), spheres.
     cluster: Vec<([f32; 3], f32, std::ops::Range<usize>)>,
