@@ -347,8 +347,9 @@ impl Clearance {
         self.unclear8_within(p, r, lanes).0
     }
 
-    /// True when the balls (centres `p` in eight lanes, radius `r`) miss every cover box in
-    /// every lane ([`CoverBoxes`]): clear without a read. False when a lane is not a number.
+    /// True when the balls (centres `p` in eight lanes, radius `r`) miss, in every lane, each of
+    /// the few boxes that hold every occupied block (see the module docs): clear without a
+    /// read. False when a lane is not a number.
     #[inline(always)]
     pub fn missed8(&self, p: [F8; 3], r: f32) -> bool {
         self.boxes.missed8(p, r)
