@@ -83,6 +83,11 @@ pub struct Args {
     /// Also print one `PROBLEM` line per problem (time, iterations, nodes, exact fallbacks).
     #[arg(long)]
     per_problem: bool,
+    /// Plan each problem once untimed before the timed plan (the same seed, so the same
+    /// search): the caches then hold what that search reads, as for a daemon planning again
+    /// against a map it holds; without it, the first plan after the map was built is timed.
+    #[arg(long)]
+    warm: bool,
     /// Write each solved problem's returned path to this file, one JSON object a line:
     /// `{"set", "index", "joints", "continuous", "path"}` (joint names in the path's order;
     /// the continuous ones, whose edges go the short way round), for checkers outside Ember
@@ -127,9 +132,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         };
         let set = ProblemSet::load(dir, &robot)?;
         // With --map-compare: the scene's objects alone, and with the cloud's map added.
-        let mut tally = Tally::default();
-        let mut objects_only = Tally::default();
-        let mut voxels_only = Tally::default();
+        let fresh = || Tally {
+            warm: args.warm,
+            ..Tally::default()
+        };
+        let (mut tally, mut objects_only, mut voxels_only) = (fresh(), fresh(), fresh());
         let mut voxels = None;
         let mut map_ms = Vec::new();
         // The robot with the joints outside the group (fingers, head) as a problem's start
@@ -220,7 +227,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         } else {
             String::new()
         };
-        results.push(tally.result(&set.name, &cloud_keys));
+        let warm_key = if args.warm { " warm=1" } else { "" };
+        results.push(tally.result(&set.name, &format!("{cloud_keys}{warm_key}")));
         if args.map_compare {
             let (off, _, _) = summary(&mut objects_only.times.clone());
             let (on, _, _) = summary(&mut tally.times.clone());
@@ -261,6 +269,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 /// The outcomes of one set's problems.
 #[derive(Default)]
 struct Tally {
+    /// Plan each request once untimed before timing it (`--warm`).
+    warm: bool,
     times: Vec<f64>,
     /// Summed planning time of the solved problems, ms.
     solved_sum: f64,
@@ -293,6 +303,9 @@ impl Tally {
         req: &PlanRequest,
         time_limit: f64,
     ) -> (String, Option<Vec<Vec<f64>>>) {
+        if self.warm {
+            let _ = planning::plan(robot, env, req, &mut UniformSampler);
+        }
         let t = Instant::now();
         match planning::plan(robot, env, req, &mut UniformSampler) {
             Ok(res) => {
