@@ -554,7 +554,8 @@ impl BatchChecker {
     /// [`BatchChecker::deflate`] undoes it. Links that never move are placed once, so they are
     /// not grown; a link grown by as much already is left as it is.
     pub fn inflate(&mut self, by: &[f32], pairs: &[f32]) {
-        let base = self.uninflated.get_or_insert_with(|| {
+        // Taken out while the radii are written, and put back.
+        let mut base = self.uninflated.take().unwrap_or_else(|| {
             Box::new(Radii {
                 bound: self.bound.clone(),
                 bound_box: self.bound_box.clone(),
@@ -565,7 +566,8 @@ impl BatchChecker {
             })
         });
         let grow = |l: usize| by.get(l).copied().unwrap_or(0.0).max(0.0);
-        for &l in &self.moving {
+        for k in 0..self.moving.len() {
+            let l = self.moving[k];
             let m = grow(l);
             if base.grown[l] == m {
                 continue;
@@ -591,11 +593,7 @@ impl BatchChecker {
             {
                 s.1 = r + m;
             }
-            let clusters = &self.cluster[self.link_clusters[l].clone()];
-            write_blocks(
-                &mut self.cluster_blocks[self.link_blocks[l].clone()],
-                clusters,
-            );
+            self.write_cluster_blocks(l);
         }
         let links = self.bound.len();
         for (pair, base) in self.pairs.iter_mut().zip(&base.pairs) {
@@ -607,6 +605,7 @@ impl BatchChecker {
             let cap = pairs.get(pair.a * links + pair.b).copied();
             pair.adjust = cap.map_or(0.0, |cap| cap.max(0.0).min(ga + gb) - (ga + gb));
         }
+        self.uninflated = Some(base);
     }
 
     /// The radii as built again, after [`BatchChecker::inflate`].

@@ -993,7 +993,6 @@ mod tests {
                 };
                 want |= (!clear as u32) << i;
             }
-            // The cover boxes clear a batch whose every ball misses them, before the grids.
             prop_assert_eq!(c.unclear8(p, r, lanes), want);
         }
 

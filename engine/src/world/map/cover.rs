@@ -55,9 +55,6 @@ impl CoverBoxes {
         for k in 0..cover.blocks.len() {
             cover.place(k);
         }
-        if std::env::var("COVER_DBG").is_ok() {
-            eprintln!("COVER n={} {:?}", blocks.len(), cover.blocks);
-        }
         cover
     }
 
