@@ -40,6 +40,8 @@ pub(crate) struct Retreat {
     /// Per planning variable on the chain, the link whose joint it drives (see [`chain`]).
     joints: Vec<(usize, usize)>,
     poses: Vec<Pose>,
+    /// The chain's poses at the root, for each direction's start.
+    root_poses: Vec<Pose>,
     jac: Vec<Vector6<f64>>,
     dq: Vec<f64>,
     q: Vec<f64>,
@@ -60,6 +62,7 @@ impl Retreat {
             links,
             joints: chain(robot, tip),
             poses: vec![Pose::identity(); robot.links().len()],
+            root_poses: vec![Pose::identity(); robot.links().len()],
             jac: vec![Vector6::zeros(); dof],
             dq: vec![0.0; dof],
             q: vec![0.0; dof],
@@ -82,10 +85,16 @@ impl Retreat {
     ) {
         let robot = checker.robot();
         let steps = (LENGTH / STEP).round() as usize;
+        robot.forward_kinematics_of(&self.links, root, &mut self.poses);
+        for &l in &self.links {
+            self.root_poses[l] = self.poses[l];
+        }
+        let start = self.poses[self.tip];
         'axes: for axis in 0..6 {
             self.q.copy_from_slice(root);
-            robot.forward_kinematics_of(&self.links, &self.q, &mut self.poses);
-            let start = self.poses[self.tip];
+            for &l in &self.links {
+                self.poses[l] = self.root_poses[l];
+            }
             let mut d = Vector3::zeros();
             d[axis / 2] = if axis % 2 == 0 { STEP } else { -STEP };
             let d = start.rotation * d;
