@@ -7,15 +7,52 @@ mod common;
 
 /// `ember-bench plan --per-problem` on the two fixture problems, in a folder named `set`.
 fn per_problem(set: &str) -> String {
+    per_problem_with(set, &[])
+}
+
+/// [`per_problem`] with `extra` arguments.
+fn per_problem_with(set: &str, extra: &[&str]) -> String {
     let dir = common::problem_folder(set);
-    common::ember_bench([
+    let mut args: Vec<&std::ffi::OsStr> = vec![
         "plan".as_ref(),
         "--per-problem".as_ref(),
         "--time-limit".as_ref(),
         "5".as_ref(),
         "--problems".as_ref(),
         dir.as_os_str(),
-    ])
+    ];
+    args.extend(extra.iter().map(std::ffi::OsStr::new));
+    common::ember_bench(args)
+}
+
+/// With `--warm` each problem is planned once before its timed plan, with the same seed: the
+/// timed searches are the ones planned without it (the same iterations and outcome, problem by
+/// problem), and the result line says the plans were warm.
+#[test]
+fn warm_plans_time_the_same_searches_and_say_so() {
+    use common::key;
+    let searches = |stdout: &str| -> Vec<(String, String, String)> {
+        stdout
+            .lines()
+            .filter(|l| l.starts_with("PROBLEM "))
+            .map(|l| (key(l, "index"), key(l, "solved"), key(l, "iterations")))
+            .collect()
+    };
+    let (cold, warm) = (
+        per_problem("plan_cold"),
+        per_problem_with("plan_warm", &["--warm"]),
+    );
+    assert_eq!(searches(&cold).len(), 2, "{cold}");
+    assert_eq!(searches(&cold), searches(&warm), "{cold}\n{warm}");
+    let result = |stdout: &str| {
+        stdout
+            .lines()
+            .find(|l| l.starts_with("RESULT plan "))
+            .map(str::to_string)
+            .expect("a RESULT plan line")
+    };
+    assert_eq!(key(&result(&warm), "warm"), "1", "{warm}");
+    assert!(!result(&cold).contains(" warm="), "{cold}");
 }
 
 #[test]

@@ -432,7 +432,14 @@ impl OccupancyMap {
         if self.coarse.is_empty() {
             return false;
         }
-        match self.clearance().and_then(|g| g.decide(c, r)) {
+        self.sphere_collides_in(self.clearance(), c, r)
+    }
+
+    /// [`OccupancyMap::sphere_collides`] with the map's clearance grid already at hand
+    /// (`grid`, from [`OccupancyMap::clearance`]), as the batch checker holds it.
+    #[inline]
+    pub(crate) fn sphere_collides_in(&self, grid: Option<&Clearance>, c: [f64; 3], r: f64) -> bool {
+        match grid.and_then(|g| g.decide(c, r)) {
             Some(touches) => touches,
             None => self.sphere_touches_voxels(c, r),
         }
