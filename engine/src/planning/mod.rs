@@ -77,7 +77,10 @@ pub struct PlannerParams {
     pub certify: bool,
     /// Wall-clock limit for the search.
     pub time_limit: Duration,
-    /// Iteration limit for the search.
+    /// Iteration limit for the search: none by default, so that the time limit ends it (a
+    /// search stuck at a goal in a narrow shelf rejects most samples and runs tens of millions
+    /// of iterations a second; the 5M cap it had gave up on MotionBenchMaker problems it solves
+    /// in 0.2–3.2 s). Set one to end a search at the same point on every machine.
     pub max_iterations: u64,
     /// Seed of every random choice: same inputs and seed, same path.
     pub seed: u64,
@@ -133,7 +136,7 @@ impl Default for PlannerParams {
             validation_refine: 1.0,
             certify: false,
             time_limit: Duration::from_secs(10),
-            max_iterations: 5_000_000,
+            max_iterations: u64::MAX,
             seed: 0,
             simplify: true,
             ik: IkParams::default(),

@@ -346,6 +346,7 @@ fn solvable_candidates(
             goal: Goal::Joints(vec![goal.clone()]),
             params: PlannerParams {
                 time_limit: options.solve_time,
+                max_iterations: CANDIDATE_ITERATIONS,
                 seed: rng.random(),
                 ..Default::default()
             },
@@ -395,6 +396,11 @@ pub const PLACE_SEED_OFFSET: u64 = 1;
 /// A dataset's test set lives beside its training set as `<name>_test`, generated with the
 /// training seed plus this offset (so the two never share a scene).
 pub const TEST_SEED_OFFSET: u64 = 1000;
+
+/// Iterations a candidate's search may take (besides [`GenerateOptions::solve_time`]): a
+/// candidate that needs more is a needle the sets are better without, and the cap keeps the
+/// sets the same on every machine fast enough to reach it.
+const CANDIDATE_ITERATIONS: u64 = 5_000_000;
 
 /// Settings of [`generate`].
 #[derive(Debug, Clone)]

@@ -245,6 +245,16 @@ fn iteration_limit_gives_a_timeout() {
     }
 }
 
+/// By default only the time limit ends a search: no iteration cap cuts short a search that
+/// rejects most of its samples (on MotionBenchMaker's bookshelves such searches run tens of
+/// millions of iterations a second and solve within the limit).
+#[test]
+fn a_default_search_has_no_iteration_cap() {
+    let params = PlannerParams::default();
+    assert_eq!(params.max_iterations, u64::MAX);
+    assert!(params.time_limit > Duration::ZERO && params.time_limit < Duration::MAX);
+}
+
 #[test]
 fn a_set_cancel_flag_stops_the_search() {
     let robot = Robot::builtin("fetch").unwrap();
