@@ -2,7 +2,7 @@
 //!
 //! Flags: `--robot` (default: the folder's `config.yaml`, else fetch) with `--srdf`, `--group`,
 //! `--package-path`, `--sphere-protrusion`; `--time-limit S` per problem (default 10),
-//! `--seed N`, `--no-simplify`, `--range R`, `--validation-refine K`. With `--clouds DIR` the obstacles are not the
+//! `--seed N`, `--max-iterations N` (default none), `--no-simplify`, `--range R`, `--validation-refine K`. With `--clouds DIR` the obstacles are not the
 //! scene's objects but the point cloud `DIR/<set>/cloudNNNN.pcd` (ASCII PCD, x y z in the base
 //! frame, as the VAMP peer writes them), its points marked occupied in an occupancy map at
 //! `--cloud-resolution` (default 0.01 m); problems without a cloud are skipped (VAMP found
@@ -58,6 +58,10 @@ pub struct Args {
     /// Planner seed (each problem uses seed + index).
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// End each search after this many iterations too (default: none, the time limit ends
+    /// it), at the same point on every machine.
+    #[arg(long)]
+    max_iterations: Option<u64>,
     /// Skip path simplification.
     #[arg(long)]
     no_simplify: bool,
@@ -186,6 +190,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 params: PlannerParams {
                     seed: args.seed + p.index as u64,
                     time_limit: Duration::from_secs_f64(args.time_limit),
+                    max_iterations: args.max_iterations.unwrap_or(u64::MAX),
                     simplify: !args.no_simplify,
                     range: args.range.unwrap_or(PlannerParams::default().range),
                     validation_refine: args.validation_refine,

@@ -55,6 +55,37 @@ fn warm_plans_time_the_same_searches_and_say_so() {
     assert!(!result(&cold).contains(" warm="), "{cold}");
 }
 
+/// `--max-iterations` ends each search there, as the time limit would: a problem whose search
+/// takes more iterations is not solved under the cap, and its line says `timeout`.
+#[test]
+fn an_iteration_cap_ends_the_searches() {
+    use common::key;
+    let lines = |stdout: &str| -> Vec<String> {
+        stdout
+            .lines()
+            .filter(|l| l.starts_with("PROBLEM "))
+            .map(str::to_string)
+            .collect()
+    };
+    let free = per_problem("plan_uncapped");
+    let iterations: Vec<u64> = lines(&free)
+        .iter()
+        .map(|l| key(l, "iterations").parse().expect("iterations"))
+        .collect();
+    let cap = iterations.iter().max().copied().unwrap_or(0) / 2;
+    assert!(cap > 0, "no search to cut short: {free}");
+    let capped = per_problem_with("plan_capped", &["--max-iterations", &cap.to_string()]);
+    let capped = lines(&capped);
+    assert_eq!(capped.len(), iterations.len());
+    for (line, &n) in capped.iter().zip(&iterations) {
+        if n > cap {
+            assert_eq!(key(line, "outcome"), "timeout", "{line}");
+        } else {
+            assert_eq!(key(line, "iterations"), n.to_string(), "{line}");
+        }
+    }
+}
+
 #[test]
 fn per_problem_lines_name_each_problem_and_agree_with_the_result_line() {
     let stdout = per_problem("plan_per_problem");

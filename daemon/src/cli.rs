@@ -103,6 +103,10 @@ pub struct PlanArgs {
     /// Time limit in seconds (default: the request's allowed_planning_time, else 10).
     #[arg(long)]
     pub time_limit: Option<f64>,
+    /// End the search after this many iterations too (default: none, the time limit ends it),
+    /// at the same point on every machine.
+    #[arg(long)]
+    pub max_iterations: Option<u64>,
     /// Keep the raw path (no simplification).
     #[arg(long)]
     pub no_simplify: bool,

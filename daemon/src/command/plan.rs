@@ -46,6 +46,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<ExitCode> {
         params: PlannerParams {
             seed: args.seed,
             time_limit: Duration::from_secs_f64(time_limit),
+            max_iterations: args.max_iterations.unwrap_or(u64::MAX),
             simplify: !args.no_simplify,
             certify: !args.no_certify,
             timing,

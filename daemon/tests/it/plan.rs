@@ -23,6 +23,26 @@ fn plan_prints_a_solved_path() {
     assert_eq!(path[0][0].as_f64(), Some(0.1));
 }
 
+/// `--max-iterations` ends the search there, as the time limit would: the fixture's search
+/// takes more than one iteration, so a cap of one leaves it unsolved, reported as a timeout.
+#[test]
+fn plan_stops_at_its_iteration_cap() {
+    let run = |extra: &[&str]| {
+        let mut args = vec!["plan", "--json", "--no-trajectory"];
+        let (scene, request) = (fixture("scene.yaml"), fixture("request_joint.yaml"));
+        args.extend(["--scene", &scene, "--request", &request]);
+        args.extend(extra);
+        ember(&args)
+    };
+    let free = crate::json_output(&run(&[]));
+    assert_eq!(free["status"], "solved");
+    assert!(free["stats"]["iterations"].as_u64().unwrap() > 1, "{free}");
+    let out = run(&["--max-iterations", "1"]);
+    assert_eq!(out.status.code(), Some(1));
+    let capped: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    assert_eq!(capped["status"], "timeout", "{capped}");
+}
+
 /// `ember plan` certifies the returned path between its states unless told not to; a path
 /// that grazes nothing comes back the same either way.
 #[test]
