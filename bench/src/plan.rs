@@ -190,7 +190,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 params: PlannerParams {
                     seed: args.seed + p.index as u64,
                     time_limit: Duration::from_secs_f64(args.time_limit),
-                    max_iterations: args.max_iterations.unwrap_or(u64::MAX),
+                    max_iterations: args
+                        .max_iterations
+                        .unwrap_or(PlannerParams::default().max_iterations),
                     simplify: !args.no_simplify,
                     range: args.range.unwrap_or(PlannerParams::default().range),
                     validation_refine: args.validation_refine,

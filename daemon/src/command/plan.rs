@@ -46,7 +46,9 @@ pub fn run(args: PlanArgs) -> anyhow::Result<ExitCode> {
         params: PlannerParams {
             seed: args.seed,
             time_limit: Duration::from_secs_f64(time_limit),
-            max_iterations: args.max_iterations.unwrap_or(u64::MAX),
+            max_iterations: args
+                .max_iterations
+                .unwrap_or(PlannerParams::default().max_iterations),
             simplify: !args.no_simplify,
             certify: !args.no_certify,
             timing,

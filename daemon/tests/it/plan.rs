@@ -23,21 +23,23 @@ fn plan_prints_a_solved_path() {
     assert_eq!(path[0][0].as_f64(), Some(0.1));
 }
 
+/// `ember plan --json --no-trajectory` on the fixtures' table scene and joint goal, with `extra`.
+fn plan_joint_goal(extra: &[&str]) -> std::process::Output {
+    let mut args = vec!["plan", "--json", "--no-trajectory"];
+    let (scene, request) = (fixture("scene.yaml"), fixture("request_joint.yaml"));
+    args.extend(["--scene", &scene, "--request", &request]);
+    args.extend(extra);
+    ember(&args)
+}
+
 /// `--max-iterations` ends the search there, as the time limit would: the fixture's search
 /// takes more than one iteration, so a cap of one leaves it unsolved, reported as a timeout.
 #[test]
 fn plan_stops_at_its_iteration_cap() {
-    let run = |extra: &[&str]| {
-        let mut args = vec!["plan", "--json", "--no-trajectory"];
-        let (scene, request) = (fixture("scene.yaml"), fixture("request_joint.yaml"));
-        args.extend(["--scene", &scene, "--request", &request]);
-        args.extend(extra);
-        ember(&args)
-    };
-    let free = crate::json_output(&run(&[]));
+    let free = crate::json_output(&plan_joint_goal(&[]));
     assert_eq!(free["status"], "solved");
     assert!(free["stats"]["iterations"].as_u64().unwrap() > 1, "{free}");
-    let out = run(&["--max-iterations", "1"]);
+    let out = plan_joint_goal(&["--max-iterations", "1"]);
     assert_eq!(out.status.code(), Some(1));
     let capped: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
     assert_eq!(capped["status"], "timeout", "{capped}");
@@ -47,13 +49,7 @@ fn plan_stops_at_its_iteration_cap() {
 /// that grazes nothing comes back the same either way.
 #[test]
 fn plan_certifies_unless_told_not_to() {
-    let run = |extra: &[&str]| {
-        let mut args = vec!["plan", "--json", "--no-trajectory"];
-        let (scene, request) = (fixture("scene.yaml"), fixture("request_joint.yaml"));
-        args.extend(["--scene", &scene, "--request", &request]);
-        args.extend(extra);
-        crate::json_output(&ember(&args))
-    };
+    let run = |extra: &[&str]| crate::json_output(&plan_joint_goal(extra));
     let (certified, plain) = (run(&[]), run(&["--no-certify"]));
     assert_eq!(
         (&certified["status"], &plain["status"]),
