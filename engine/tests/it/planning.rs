@@ -245,14 +245,82 @@ fn iteration_limit_gives_a_timeout() {
     }
 }
 
+/// The same configuration every time.
+struct Fixed(Vec<f64>);
+
+impl planning::Sampler for Fixed {
+    fn sample(&mut self, _: &Robot, _: &mut planning::PlannerRng, out: &mut [f64]) {
+        out.copy_from_slice(&self.0);
+    }
+}
+
 /// By default only the time limit ends a search: no iteration cap cuts short a search that
-/// rejects most of its samples (on MotionBenchMaker's bookshelves such searches run tens of
-/// millions of iterations a second and solve within the limit).
+/// rejects its samples. Here every sample is the tucked arm raised by the torso into a block,
+/// so the one extension fails, the start's dynamic domain shrinks to a millimetre, and every
+/// later sample is rejected in a few tens of nanoseconds: the old cap of 5M iterations ended
+/// such a search in a fraction of a second.
 #[test]
-fn a_default_search_has_no_iteration_cap() {
-    let params = PlannerParams::default();
-    assert_eq!(params.max_iterations, u64::MAX);
-    assert!(params.time_limit > Duration::ZERO && params.time_limit < Duration::MAX);
+fn the_time_limit_ends_a_default_search() {
+    use ember_engine::collision::exact::ExactChecker;
+    use ember_engine::collision::Shape;
+    use ember_engine::planning::rrt_connect::DynamicDomain;
+    use ember_engine::world::Object;
+    let robot = Robot::builtin("fetch").unwrap();
+    let mut start = robot.named_state("tuck").unwrap().to_vec();
+    start[0] = 0.0;
+    let mut raised = start.clone();
+    raised[0] = 0.3;
+    // A 4 cm block where one of the hand's links is once the torso has risen, placed where the
+    // tucked arm clears it.
+    let poses = robot.link_poses(&raised).unwrap();
+    let env = [
+        "gripper_link",
+        "wrist_roll_link",
+        "wrist_flex_link",
+        "forearm_roll_link",
+    ]
+    .iter()
+    .map(|name| {
+        let at = poses[robot.link_index(name).unwrap()].translation;
+        let block = Object {
+            name: "block".into(),
+            shape: Shape::cuboid([0.04, 0.04, 0.04]),
+            pose: Pose::translation(at.x, at.y, at.z),
+        };
+        let mut objects = table_scene().objects().to_vec();
+        objects.push(block);
+        Environment::from_objects(objects).unwrap()
+    })
+    .find(|env| {
+        let mut exact = ExactChecker::new(&robot, env);
+        exact.is_valid(&start) && !exact.is_valid(&raised)
+    })
+    .expect("no block stops the torso and leaves the tucked arm free");
+    let limit = Duration::from_millis(1500);
+    let req = PlanRequest {
+        start,
+        // Under the table: no straight way from the tucked arm.
+        goal: Goal::Joints(vec![vec![0.0, 0.0, 0.9, 0.0, -0.9, 0.0, 0.0, 0.0]]),
+        params: PlannerParams {
+            time_limit: limit,
+            dynamic_domain: Some(DynamicDomain {
+                radius: 1e-3,
+                min_radius: 1e-3,
+                alpha: 0.0,
+            }),
+            ..Default::default()
+        },
+    };
+    match planning::plan(&robot, &env, &req, &mut Fixed(raised)) {
+        Err(PlanError::Timeout {
+            elapsed_ms,
+            iterations,
+        }) => assert!(
+            elapsed_ms >= limit.as_secs_f64() * 1e3,
+            "ended after {iterations} iterations, {elapsed_ms} ms"
+        ),
+        other => panic!("expected a timeout, got {other:?}"),
+    }
 }
 
 #[test]
