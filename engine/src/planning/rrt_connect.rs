@@ -187,12 +187,12 @@ const RETREAT_AFTER: (u64, u64, usize) = (256, 16, 4);
 /// Samples drawn in a row without an extension advancing, after which the dynamic domain is
 /// set aside (every sample extends from its nearest node) until one advances. A tree whose
 /// nodes have all failed has radii at their floor, and a node's radius takes in one uniform
-/// Fetch sample in ~5,000: a goal deep in a narrow shelf then took 1–3 s, or the whole 10 s
-/// limit, on the official Fetch's bookshelf_small 91 and bookshelf_thin 5, 19 and 23 (seeds 0
-/// and 1), and seconds against the point clouds of bookshelf_thin 19 and 67, where every sample
-/// extending found the way out in 3–640 ms. Searches that advance at least once in this many
-/// samples, most of them, are unchanged (4,096 took the same medians, 1,024 slowed the official
-/// Fetch's bookshelf_thin median by a third).
+/// Fetch sample in ~5,000: a goal deep in a narrow shelf then took 0.2–3.5 s, or the whole
+/// 10 s limit, on the official Fetch's bookshelf_small 91 and bookshelf_thin 5, 19 and 23
+/// (seeds 0 and 1), and seconds against the point clouds of bookshelf_thin 19 and 67, where
+/// every sample extending found the way out in 3–640 ms. Searches that advance at least once in
+/// this many samples, most of them, are unchanged (4,096 took the same medians; 1,024 slowed
+/// the official Fetch's bookshelf_thin median search by 39%).
 const DOMAIN_STALLED_AFTER: u64 = 16_384;
 
 /// Sampling, neighbour queries and checks are timed on one iteration in this many and scaled
